@@ -1,0 +1,72 @@
+#include "capture/segment/mask_ops.h"
+
+#include <opencv2/imgproc.hpp>
+
+namespace revolve::capture {
+namespace {
+
+cv::Mat Kernel(int radius_px) {
+  return cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                   cv::Size(2 * radius_px + 1, 2 * radius_px + 1));
+}
+
+}  // namespace
+
+cv::Mat GreyLevels(const cv::Mat& image) {
+  cv::Mat grey;
+  switch (image.channels()) {
+    case 3:
+      cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+      break;
+    case 4:
+      cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+      break;
+    default:
+      grey = image;
+      break;
+  }
+  return grey;
+}
+
+cv::Mat OpenMask(const cv::Mat& mask, int radius_px) {
+  if (radius_px <= 0) return mask;
+  cv::Mat out;
+  cv::morphologyEx(mask, out, cv::MORPH_OPEN, Kernel(radius_px));
+  return out;
+}
+
+cv::Mat CloseMask(const cv::Mat& mask, int radius_px) {
+  if (radius_px <= 0) return mask;
+  cv::Mat out;
+  cv::morphologyEx(mask, out, cv::MORPH_CLOSE, Kernel(radius_px));
+  return out;
+}
+
+cv::Mat KeepLargestComponent(const cv::Mat& mask) {
+  cv::Mat labels, stats, centroids;
+  const int count = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  int best = 0;
+  int best_area = 0;
+  for (int label = 1; label < count; ++label) {
+    const int area = stats.at<int>(label, cv::CC_STAT_AREA);
+    if (area > best_area) {
+      best = label;
+      best_area = area;
+    }
+  }
+  if (best == 0) return cv::Mat::zeros(mask.size(), CV_8UC1);
+  cv::Mat out = labels == best;
+  return out;
+}
+
+cv::Mat FillHoles(const cv::Mat& mask) {
+  cv::Mat padded;
+  cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::floodFill(padded, cv::Point(0, 0), cv::Scalar(255), nullptr, cv::Scalar(), cv::Scalar(), 4);
+  // What the flood did not reach is object or hole.
+  cv::Mat out = padded(cv::Rect(1, 1, mask.cols, mask.rows)) == 0;
+  out |= mask;
+  return out;
+}
+
+}  // namespace revolve::capture

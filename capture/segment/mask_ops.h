@@ -1,0 +1,28 @@
+// Pure operations on binary masks (CV_8UC1, 0 or 255), the steps of silhouette segmentation.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+namespace revolve::capture {
+
+// Grey level of an 8-bit image: the image itself for one channel, cv::cvtColor for BGR and
+// BGRA. Contract: depth CV_8U with 1, 3 or 4 channels.
+cv::Mat GreyLevels(const cv::Mat& image);
+
+// Opening (radius_px > 0) with an elliptical kernel of diameter 2 * radius_px + 1: removes
+// specks and one-pixel spurs narrower than the kernel. radius_px <= 0 returns the mask as is.
+cv::Mat OpenMask(const cv::Mat& mask, int radius_px);
+
+// Closing with the same kernel: fills pinholes and cracks narrower than the kernel.
+cv::Mat CloseMask(const cv::Mat& mask, int radius_px);
+
+// The largest 8-connected component of a mask (ties: the lowest label, i.e. the first in raster
+// order); an all-zero mask when there is none.
+cv::Mat KeepLargestComponent(const cv::Mat& mask);
+
+// Sets every background pixel that is not 4-connected to the image border (a hole) to 255.
+// 4-connected background is the complement of 8-connected foreground, so a ring closed only
+// diagonally still counts as closed.
+cv::Mat FillHoles(const cv::Mat& mask);
+
+}  // namespace revolve::capture

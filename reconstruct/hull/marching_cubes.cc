@@ -1,0 +1,372 @@
+#include "reconstruct/hull/marching_cubes.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+#include <limits>
+#include <numeric>
+
+#include <Eigen/Geometry>
+
+namespace revolve::reconstruct {
+
+BitVolume::BitVolume(const Eigen::Vector3i& dims) : dims_(dims.cwiseMax(0)) {
+  words_per_row_ = (dims_.x() + 63) / 64;
+  words_.assign(static_cast<std::size_t>(words_per_row_) * dims_.y() * dims_.z(), 0);
+}
+
+std::int64_t BitVolume::Count() const {
+  std::int64_t count = 0;
+  for (std::uint64_t w : words_) count += std::popcount(w);
+  return count;
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// The case table. Corner c of a cell is at (c & 1, (c >> 1) & 1, (c >> 2) & 1). Edge e joins
+// kEdgeCorner[e][0] (lower) and kEdgeCorner[e][1] along axis e / 4; the other two coordinates of
+// the lower corner are (e & 1, (e >> 1) & 1) in increasing axis order.
+
+struct CubeEdge {
+  int axis;
+  int lower_corner;
+  int upper_corner;
+};
+
+constexpr std::array<CubeEdge, 12> MakeEdges() {
+  std::array<CubeEdge, 12> edges{};
+  for (int e = 0; e < 12; ++e) {
+    const int axis = e / 4;
+    const int b0 = e & 1;
+    const int b1 = (e >> 1) & 1;
+    int c = 0;
+    if (axis == 0) c = (b0 << 1) | (b1 << 2);
+    if (axis == 1) c = b0 | (b1 << 2);
+    if (axis == 2) c = b0 | (b1 << 1);
+    edges[e] = CubeEdge{axis, c, c | (1 << axis)};
+  }
+  return edges;
+}
+constexpr std::array<CubeEdge, 12> kEdges = MakeEdges();
+
+int EdgeBetween(int c0, int c1) {
+  for (int e = 0; e < 12; ++e) {
+    if ((kEdges[e].lower_corner == c0 && kEdges[e].upper_corner == c1) ||
+        (kEdges[e].lower_corner == c1 && kEdges[e].upper_corner == c0)) {
+      return e;
+    }
+  }
+  return -1;
+}
+
+Eigen::Vector3d CornerPosition(int c) { return Eigen::Vector3d(c & 1, (c >> 1) & 1, (c >> 2) & 1); }
+Eigen::Vector3d EdgeMidpoint(int e) {
+  return 0.5 * (CornerPosition(kEdges[e].lower_corner) + CornerPosition(kEdges[e].upper_corner));
+}
+
+// True when edges e and f lie on a common face of the cell.
+bool ShareFace(int e, int f) {
+  const Eigen::Vector3d a = EdgeMidpoint(e);
+  const Eigen::Vector3d b = EdgeMidpoint(f);
+  for (int axis = 0; axis < 3; ++axis) {
+    if (axis == kEdges[e].axis || axis == kEdges[f].axis) continue;
+    if (a[axis] == b[axis]) return true;
+  }
+  return false;
+}
+
+struct CaseTable {
+  // Triangles of each case as local edge triples, terminated by -1.
+  std::array<std::array<std::int8_t, 3 * 12 + 1>, 256> triangles;
+};
+
+// Minimum-total-chord triangulation of a loop with no chord joining two same-face vertices.
+// Appends triangles (same orientation as the loop) to `out`.
+void TriangulateLoop(const std::vector<int>& loop, std::vector<int>* out) {
+  const int n = static_cast<int>(loop.size());
+  constexpr double kInvalid = std::numeric_limits<double>::infinity();
+  auto chord = [&](int i, int j) {
+    if (j - i == 1 || (i == 0 && j == n - 1)) return 0.0;  // a side of the loop
+    if (ShareFace(loop[i], loop[j])) return kInvalid;
+    return (EdgeMidpoint(loop[i]) - EdgeMidpoint(loop[j])).norm();
+  };
+  std::vector<std::vector<double>> cost(n, std::vector<double>(n, 0.0));
+  std::vector<std::vector<int>> split(n, std::vector<int>(n, -1));
+  for (int len = 2; len < n; ++len) {
+    for (int i = 0; i + len < n; ++i) {
+      const int j = i + len;
+      cost[i][j] = kInvalid;
+      const double own = chord(i, j);
+      if (own == kInvalid) continue;
+      for (int k = i + 1; k < j; ++k) {
+        const double c = cost[i][k] + cost[k][j] + own;
+        if (c < cost[i][j]) {
+          cost[i][j] = c;
+          split[i][j] = k;
+        }
+      }
+    }
+  }
+  if (n < 3 || cost[0][n - 1] == kInvalid) {
+    std::abort();  // the rule always admits a triangulation; checked by tests at table build
+  }
+  std::vector<std::pair<int, int>> stack = {{0, n - 1}};
+  while (!stack.empty()) {
+    auto [i, j] = stack.back();
+    stack.pop_back();
+    if (j - i < 2) continue;
+    const int k = split[i][j];
+    out->insert(out->end(), {loop[i], loop[k], loop[j]});
+    stack.push_back({i, k});
+    stack.push_back({k, j});
+  }
+}
+
+CaseTable BuildCaseTable() {
+  CaseTable table{};
+  for (int config = 0; config < 256; ++config) {
+    auto inside = [&](int c) { return ((config >> c) & 1) != 0; };
+    std::array<int, 12> next;
+    next.fill(-1);
+    for (int axis = 0; axis < 3; ++axis) {
+      const int a1 = (axis + 1) % 3;
+      const int a2 = (axis + 2) % 3;
+      for (int side = 0; side < 2; ++side) {
+        // Corners of this face in cyclic order.
+        std::array<int, 4> ring;
+        const int steps[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+        for (int r = 0; r < 4; ++r) {
+          ring[r] = (side << axis) | (steps[r][0] << a1) | (steps[r][1] << a2);
+        }
+        Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+        normal[axis] = side ? 1.0 : -1.0;
+        for (int r = 0; r < 4; ++r) {
+          const int prev = (r + 3) % 4;
+          if (!inside(ring[r]) || inside(ring[prev])) continue;  // not the start of a run
+          int end = r;
+          while (inside(ring[(end + 1) % 4])) end = (end + 1) % 4;
+          int a = EdgeBetween(ring[prev], ring[r]);
+          int b = EdgeBetween(ring[end], ring[(end + 1) % 4]);
+          const Eigen::Vector3d pa = EdgeMidpoint(a);
+          const Eigen::Vector3d pb = EdgeMidpoint(b);
+          const Eigen::Vector3d pc = CornerPosition(ring[r]);
+          if ((pb - pa).cross(pc - pa).dot(normal) > 0.0) std::swap(a, b);
+          if (next[a] != -1) std::abort();
+          next[a] = b;
+        }
+      }
+    }
+    std::vector<int> triangles;
+    std::array<bool, 12> used{};
+    for (int start = 0; start < 12; ++start) {
+      if (next[start] == -1 || used[start]) continue;
+      std::vector<int> loop;
+      for (int e = start; !used[e]; e = next[e]) {
+        used[e] = true;
+        loop.push_back(e);
+        if (next[e] == -1) std::abort();
+      }
+      TriangulateLoop(loop, &triangles);
+    }
+    auto& row = table.triangles[config];
+    std::fill(row.begin(), row.end(), std::int8_t{-1});
+    for (std::size_t i = 0; i < triangles.size(); ++i) {
+      row[i] = static_cast<std::int8_t>(triangles[i]);
+    }
+  }
+  return table;
+}
+
+const CaseTable& Table() {
+  static const CaseTable table = BuildCaseTable();
+  return table;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int Find(int x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  }
+  void Unite(int a, int b) {
+    a = Find(a);
+    b = Find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+};
+
+}  // namespace
+
+int KeepLargestComponent(Mesh* mesh) {
+  const int vertex_count = static_cast<int>(mesh->vertices.size());
+  if (mesh->faces.empty()) return 0;
+  UnionFind sets(vertex_count);
+  for (const Eigen::Vector3i& f : mesh->faces) {
+    sets.Unite(f[0], f[1]);
+    sets.Unite(f[1], f[2]);
+  }
+  std::vector<int> triangles_of_root(vertex_count, 0);
+  for (const Eigen::Vector3i& f : mesh->faces) ++triangles_of_root[sets.Find(f[0])];
+  int components = 0;
+  int best_root = -1;
+  for (int v = 0; v < vertex_count; ++v) {
+    if (triangles_of_root[v] == 0) continue;
+    ++components;
+    if (best_root < 0 || triangles_of_root[v] > triangles_of_root[best_root]) best_root = v;
+  }
+  if (components <= 1) return components;
+
+  std::vector<int> new_index(vertex_count, -1);
+  Mesh kept;
+  const bool colors = mesh->HasColors();
+  for (const Eigen::Vector3i& f : mesh->faces) {
+    if (sets.Find(f[0]) != best_root) continue;
+    Eigen::Vector3i g;
+    for (int c = 0; c < 3; ++c) {
+      int& idx = new_index[f[c]];
+      if (idx < 0) {
+        idx = static_cast<int>(kept.vertices.size());
+        kept.vertices.push_back(mesh->vertices[f[c]]);
+        if (colors) kept.colors.push_back(mesh->colors[f[c]]);
+      }
+      g[c] = idx;
+    }
+    kept.faces.push_back(g);
+  }
+  *mesh = std::move(kept);
+  return components;
+}
+
+Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double spacing,
+                   const EdgeCrossings& crossings, const MarchingCubesOptions& options) {
+  const CaseTable& table = Table();
+  Mesh mesh;
+  const Eigen::Vector3i& dims = field.dims();
+  if (dims.minCoeff() <= 0 || field.Count() == 0) return mesh;
+
+  // A copy padded by one empty sample on every side: padded sample p is field sample p - 1.
+  const Eigen::Vector3i n = dims + Eigen::Vector3i::Constant(2);
+  BitVolume padded(n);
+  const int src_words = field.words_per_row();
+  for (int k = 0; k < dims.z(); ++k) {
+    for (int j = 0; j < dims.y(); ++j) {
+      const std::uint64_t* src = field.Row(j, k);
+      std::uint64_t* dst = padded.Row(j + 1, k + 1);
+      std::uint64_t carry = 0;
+      for (int w = 0; w < src_words; ++w) {
+        dst[w] = (src[w] << 1) | carry;
+        carry = src[w] >> 63;
+      }
+      if (src_words < padded.words_per_row()) dst[src_words] = carry;
+    }
+  }
+
+  // Vertex ids of the edges around the current layer of cells: x and y edges on the planes
+  // z = pz (parity pz & 1) and z = pz + 1, z edges between them. -1 = not made yet.
+  const std::int64_t plane_size = std::int64_t{n.x()} * n.y();
+  std::array<std::vector<int>, 2> x_edges = {std::vector<int>(plane_size, -1),
+                                             std::vector<int>(plane_size, -1)};
+  std::array<std::vector<int>, 2> y_edges = x_edges;
+  std::vector<int> z_edges(plane_size, -1);
+
+  // The cut edge of each vertex, in field coordinates; positions are placed after the pass.
+  std::vector<GridEdge> cut_edges;
+  auto make_vertex = [&](const Eigen::Vector3i& p0, int axis) {
+    Eigen::Vector3i p1 = p0;
+    ++p1[axis];
+    const bool first_inside = padded.Get(p0.x(), p0.y(), p0.z());
+    cut_edges.push_back(GridEdge{(first_inside ? p0 : p1) - Eigen::Vector3i::Ones(),
+                                 (first_inside ? p1 : p0) - Eigen::Vector3i::Ones()});
+    return static_cast<int>(cut_edges.size() - 1);
+  };
+
+  const int words = padded.words_per_row();
+  const int last_cell = n.x() - 2;  // cells px in [0, n.x() - 1)
+  for (int pz = 0; pz + 1 < n.z(); ++pz) {
+    std::vector<int>& x_lo = x_edges[pz & 1];
+    std::vector<int>& y_lo = y_edges[pz & 1];
+    std::vector<int>& x_hi = x_edges[(pz + 1) & 1];
+    std::vector<int>& y_hi = y_edges[(pz + 1) & 1];
+    std::fill(x_hi.begin(), x_hi.end(), -1);
+    std::fill(y_hi.begin(), y_hi.end(), -1);
+    std::fill(z_edges.begin(), z_edges.end(), -1);
+    for (int py = 0; py + 1 < n.y(); ++py) {
+      const std::uint64_t* rows[4] = {padded.Row(py, pz), padded.Row(py + 1, pz),
+                                      padded.Row(py, pz + 1), padded.Row(py + 1, pz + 1)};
+      for (int w = 0; w < words; ++w) {
+        auto word_of = [&](int r, int ww) { return ww < words ? rows[r][ww] : std::uint64_t{0}; };
+        const std::uint64_t any = word_of(0, w) | word_of(1, w) | word_of(2, w) | word_of(3, w);
+        const std::uint64_t all = word_of(0, w) & word_of(1, w) & word_of(2, w) & word_of(3, w);
+        const std::uint64_t any_next =
+            word_of(0, w + 1) | word_of(1, w + 1) | word_of(2, w + 1) | word_of(3, w + 1);
+        const std::uint64_t all_next =
+            word_of(0, w + 1) & word_of(1, w + 1) & word_of(2, w + 1) & word_of(3, w + 1);
+        const std::uint64_t any_cell = any | (any >> 1) | (any_next << 63);
+        const std::uint64_t all_cell = all & ((all >> 1) | (all_next << 63));
+        std::uint64_t active = any_cell & ~all_cell;
+        while (active != 0) {
+          const int bit = std::countr_zero(active);
+          active &= active - 1;
+          const int px = w * 64 + bit;
+          if (px > last_cell) break;
+          int config = 0;
+          for (int c = 0; c < 8; ++c) {
+            const int x = px + (c & 1);
+            const std::uint64_t* row = rows[((c >> 1) & 1) | (((c >> 2) & 1) << 1)];
+            config |= static_cast<int>((row[x >> 6] >> (x & 63)) & 1u) << c;
+          }
+          const auto& tris = table.triangles[config];
+          int local[12];
+          std::fill(std::begin(local), std::end(local), -1);
+          for (int t = 0; tris[t] >= 0; t += 3) {
+            Eigen::Vector3i face;
+            for (int v = 0; v < 3; ++v) {
+              const int e = static_cast<int>(tris[t + v]);
+              if (local[e] < 0) {
+                const CubeEdge& edge = kEdges[e];
+                const int c = edge.lower_corner;
+                const Eigen::Vector3i p0(px + (c & 1), py + ((c >> 1) & 1), pz + ((c >> 2) & 1));
+                const std::int64_t cell = std::int64_t{p0.y()} * n.x() + p0.x();
+                int* slot = nullptr;
+                if (edge.axis == 2) {
+                  slot = &z_edges[cell];
+                } else {
+                  const bool hi = (c >> 2) & 1;
+                  slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
+                }
+                if (*slot < 0) *slot = make_vertex(p0, edge.axis);
+                local[e] = *slot;
+              }
+              face[v] = local[e];
+            }
+            mesh.faces.push_back(face);
+          }
+        }
+      }
+    }
+  }
+  std::vector<double> t;
+  if (crossings) t = crossings(cut_edges);
+  if (t.size() != cut_edges.size()) t.assign(cut_edges.size(), 0.5);
+  mesh.vertices.reserve(cut_edges.size());
+  for (std::size_t v = 0; v < cut_edges.size(); ++v) {
+    const GridEdge& edge = cut_edges[v];
+    const double tv = std::clamp(t[v], 0.0, 1.0);
+    const Eigen::Vector3d position =
+        origin +
+        spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
+    mesh.vertices.push_back(position.cast<float>());
+  }
+  if (options.keep_largest_component) KeepLargestComponent(&mesh);
+  return mesh;
+}
+
+}  // namespace revolve::reconstruct

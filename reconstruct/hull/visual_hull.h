@@ -1,0 +1,151 @@
+// Incremental visual hull: a voxel grid carved one silhouette at a time.
+//
+// Point test (the definition every part of the carver agrees on): a point X survives a view iff
+// either it is not seen by the view (P * [X; 1] has a non-positive third coordinate, or its
+// nearest pixel lies outside the image), or its nearest pixel holds a non-zero mask value. The
+// nearest pixel of (u, v) is (floor(u + 0.5), floor(v + 0.5)); pixel (0, 0) is the centre of the
+// top-left pixel (base/rig.h). A view never carves what it cannot see. A voxel survives when its
+// centre survives every integrated view.
+//
+// Storage: occupancy is bit-packed in 4x4x4 bricks, one 64-bit word per brick (bit
+// x | y << 2 | z << 4 of the brick), bricks in x-fastest order; bits of voxels past the grid's
+// dims are always 0. 1 bit per voxel: 2 MiB at 256^3, 16 MiB at 512^3, 128 MiB at 1024^3.
+// Above the bricks an implicit octree (blocks of 8, 16, ... voxels aligned on multiples of their
+// size) keeps one "still has occupied voxels" flag per block, so carved regions are skipped.
+//
+// Hierarchical carving (Integrate): per view a summed-area table of the mask; a block's voxel
+// centres project inside the bounding rectangle of the rounded projections of its 8 extreme
+// centres (perspective maps the box of centres to the convex hull of its projected corners;
+// rounding is monotonic; the rectangle is widened by 1e-6 px against floating-point error, which
+// only makes it conservative). Mask count 0 and rectangle inside the image: carve the block.
+// Count equal to the rectangle's area clipped to the image: nothing in the block is carved.
+// Otherwise subdivide down to bricks, then test single voxels with the point test. The result is
+// bit-identical to IntegrateNaive, the per-voxel reference.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "base/error.h"
+#include "base/rig.h"
+#include "reconstruct/hull/marching_cubes.h"
+#include "reconstruct/mesh.h"
+
+namespace revolve::reconstruct {
+
+// A regular grid of cubic voxels in the object frame (mm). Voxel (i, j, k) spans
+// [origin + (i, j, k) * voxel_mm, origin + (i + 1, j + 1, k + 1) * voxel_mm]; its centre is
+// origin + (i + 0.5, j + 0.5, k + 0.5) * voxel_mm.
+struct VoxelGrid {
+  Eigen::Vector3d origin_mm = Eigen::Vector3d::Zero();  // the grid's min corner
+  double voxel_mm = 1.0;
+  Eigen::Vector3i dims = Eigen::Vector3i::Zero();  // voxels along x, y, z
+
+  // `resolution` voxels along the longest side of [bbox_min_mm, bbox_max_mm]; each other side
+  // gets ceil(extent / voxel_mm) voxels (at least 1), so the grid starts at bbox_min_mm and may
+  // reach up to one voxel past bbox_max_mm. Errors: bad_input for an empty or inverted box or a
+  // resolution outside [1, 4096].
+  static Expected<VoxelGrid> FromBox(const Eigen::Vector3d& bbox_min_mm,
+                                     const Eigen::Vector3d& bbox_max_mm, int resolution);
+
+  Eigen::Vector3d Centre(int i, int j, int k) const {
+    return origin_mm + voxel_mm * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
+  }
+  Eigen::Vector3d MaxCorner() const { return origin_mm + voxel_mm * dims.cast<double>(); }
+  std::int64_t VoxelCount() const {
+    return std::int64_t{dims.x()} * std::int64_t{dims.y()} * std::int64_t{dims.z()};
+  }
+};
+
+struct HullSurfaceOptions {
+  // Bisection steps that place each vertex on its grid edge against the silhouettes (each
+  // halves the uncertainty: 10 steps = voxel / 1024). 0 puts vertices at edge midpoints.
+  int bisection_steps = 10;
+  bool keep_largest_component = true;
+};
+
+class VisualHull {
+ public:
+  // All voxels start occupied.
+  explicit VisualHull(const VoxelGrid& grid);
+
+  const VoxelGrid& grid() const { return grid_; }
+  int view_count() const { return static_cast<int>(views_.size()); }
+
+  // Carves with one view (hierarchical). `mask`: CV_8UC1, view.height_px x view.width_px,
+  // non-zero = object. The mask is kept (as 0/1 bytes) for sub-voxel surface placement.
+  // Errors: bad_input for a wrong mask type or size.
+  Expected<void> Integrate(const cv::Mat& mask, const View& view);
+
+  // The reference: the point test on every still-occupied voxel. Same contract and same result
+  // as Integrate, ~50-100x slower; used by tests and benchmarks.
+  Expected<void> IntegrateNaive(const cv::Mat& mask, const View& view);
+
+  // Occupancy of voxel (i, j, k); false outside the grid.
+  bool Occupied(int i, int j, int k) const;
+  std::int64_t OccupiedCount() const;
+
+  // The continuous hull: true iff `point_mm` lies in the grid's box and survives every
+  // integrated view (the point test). Equals Occupied(i, j, k) at voxel centres.
+  bool Contains(const Eigen::Vector3d& point_mm) const;
+  // The point test against every integrated view, ignoring the grid's box.
+  bool SurvivesAllViews(const Eigen::Vector3d& point_mm) const;
+
+  // Marching cubes over the occupancy (samples at voxel centres, outside the grid empty), each
+  // vertex placed on its grid edge by bisection against Contains (only the views whose
+  // silhouette boundary can cross the edge's projection are tested: the same summed-area test
+  // as carving, so the result is that of testing every view). An edge leaving the grid is cut
+  // at the grid's face unless the silhouettes cut it sooner, so the base on the plate is flat.
+  // The mesh is watertight, 2-manifold and outward-oriented
+  // (reconstruct/hull/marching_cubes.h). Empty when no voxel is occupied.
+  Mesh ExtractSurface(const HullSurfaceOptions& options = {}) const;
+
+ private:
+  struct ViewData {
+    Matrix34d pixel_from_object;
+    cv::Mat mask01;  // CV_8UC1, 0 or 1
+  };
+  struct Sat;  // per-view summed-area table, lives only during Integrate
+  enum class BlockClass { kUnaffected, kCarve, kMixed };
+
+  Expected<ViewData> Prepare(const cv::Mat& mask, const View& view) const;
+  // The point test for voxel (i, j, k): true = survives `view`.
+  bool VoxelSurvives(const ViewData& view, int i, int j, int k) const;
+  bool PointSurvives(const ViewData& view, const Eigen::Vector3d& point_mm) const;
+  static Sat MakeSat(const ViewData& view);
+  // How `view` acts on the voxel centres lo..hi (inclusive).
+  BlockClass Classify(const ViewData& view, const Sat& sat, const Eigen::Vector3i& lo,
+                      const Eigen::Vector3i& hi) const;
+  // How `view` acts on the convex hull of `points` (kUnaffected: on none of its points).
+  static BlockClass ClassifyHull(const ViewData& view, const Sat& sat,
+                                 const Eigen::Vector3d* points, int count);
+  // Bisection of every cut edge against the silhouettes (see ExtractSurface).
+  std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges, int steps) const;
+  // Returns whether the block still holds occupied voxels.
+  bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node);
+  void ClearBlock(int level, const Eigen::Vector3i& node);
+  bool CarveBrick(const ViewData& view, const Eigen::Vector3i& brick);
+  void RebuildFlags();
+
+  std::int64_t BrickIndex(const Eigen::Vector3i& b) const {
+    return (std::int64_t{b.z()} * brick_dims_.y() + b.y()) * brick_dims_.x() + b.x();
+  }
+  std::int64_t NodeIndex(int level, const Eigen::Vector3i& n) const {
+    const Eigen::Vector3i& d = level_dims_[level];
+    return (std::int64_t{n.z()} * d.y() + n.y()) * d.x() + n.x();
+  }
+
+  VoxelGrid grid_;
+  Eigen::Vector3i brick_dims_;
+  std::vector<std::uint64_t> bricks_;
+  // level_dims_[0] = brick_dims_; level l > 0 holds blocks of 4 << l voxels. alive_[l] (l > 0):
+  // 1 when the block may still hold occupied voxels (exact after each Integrate).
+  std::vector<Eigen::Vector3i> level_dims_;
+  std::vector<std::vector<std::uint8_t>> alive_;
+  std::vector<ViewData> views_;
+};
+
+}  // namespace revolve::reconstruct

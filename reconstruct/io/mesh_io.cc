@@ -1,0 +1,671 @@
+#include "reconstruct/io/mesh_io.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <fmt/format.h>
+
+namespace revolve::reconstruct {
+namespace {
+
+namespace fs = std::filesystem;
+
+static_assert(std::endian::native == std::endian::little,
+              "the PLY writer and reader assume a little-endian host");
+
+// An open file descriptor (RAII).
+class UniqueFd {
+ public:
+  explicit UniqueFd(int fd = -1) : fd_(fd) {}
+  UniqueFd(const UniqueFd&) = delete;
+  UniqueFd& operator=(const UniqueFd&) = delete;
+  ~UniqueFd() { Reset(); }
+  int get() const { return fd_; }
+  void Reset(int fd = -1) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = fd;
+  }
+  // Closes now and reports close(2)'s errno (0 on success).
+  int Close() {
+    int err = 0;
+    if (fd_ >= 0 && ::close(fd_) != 0) err = errno;
+    fd_ = -1;
+    return err;
+  }
+
+ private:
+  int fd_;
+};
+
+Error IoError(const fs::path& path, std::string_view what, int err) {
+  return Error{ErrorCode::kIo, fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
+}
+
+// Buffered writer to a temporary file that becomes `path` on Commit.
+class AtomicFile {
+ public:
+  explicit AtomicFile(fs::path path) : path_(std::move(path)) {}
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile() {
+    if (!temp_.empty()) {
+      fd_.Close();
+      ::unlink(temp_.c_str());
+    }
+  }
+
+  Expected<void> Open() {
+    fs::path dir = path_.parent_path();
+    if (dir.empty()) dir = ".";
+    std::string name = (dir / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
+    const int fd = ::mkstemp(name.data());
+    if (fd < 0) return std::unexpected(IoError(path_, "cannot create the file", errno));
+    fd_.Reset(fd);
+    temp_ = name;
+    ::fchmod(fd, 0644);
+    buffer_.reserve(kBufferSize);
+    return {};
+  }
+
+  void Append(std::string_view bytes) {
+    buffer_.append(bytes);
+    if (buffer_.size() >= kBufferSize) Flush();
+  }
+  template <class T>
+  void AppendRaw(const T& value) {
+    Append(std::string_view(reinterpret_cast<const char*>(&value), sizeof(T)));
+  }
+
+  Expected<void> Commit() {
+    Flush();
+    if (write_errno_ != 0) return std::unexpected(IoError(path_, "cannot write", write_errno_));
+    if (::fsync(fd_.get()) != 0) return std::unexpected(IoError(path_, "cannot sync", errno));
+    if (const int err = fd_.Close(); err != 0) {
+      return std::unexpected(IoError(path_, "cannot close", err));
+    }
+    if (::rename(temp_.c_str(), path_.c_str()) != 0) {
+      return std::unexpected(IoError(path_, "cannot rename the finished file into place", errno));
+    }
+    temp_.clear();
+    // Make the rename itself durable.
+    fs::path dir = path_.parent_path();
+    if (dir.empty()) dir = ".";
+    UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+    if (dir_fd.get() >= 0) ::fsync(dir_fd.get());
+    return {};
+  }
+
+ private:
+  static constexpr std::size_t kBufferSize = 1 << 20;
+
+  void Flush() {
+    std::size_t done = 0;
+    while (write_errno_ == 0 && done < buffer_.size()) {
+      const ssize_t n = ::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        write_errno_ = errno;
+      } else {
+        done += static_cast<std::size_t>(n);
+      }
+    }
+    buffer_.clear();
+  }
+
+  fs::path path_;
+  std::string temp_;
+  UniqueFd fd_;
+  std::string buffer_;
+  int write_errno_ = 0;
+};
+
+// Shortest text that reads back as the same float.
+void AppendFloat(std::string* out, float value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out->append(buffer, result.ptr);
+}
+
+void AppendInt(std::string* out, long long value) {
+  char buffer[24];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out->append(buffer, result.ptr);
+}
+
+Expected<std::string> ReadWholeFile(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+Error BadFile(const fs::path& path, std::string_view what) {
+  return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
+}
+
+// Validates face indices and appends fan triangles of `polygon`.
+bool AddPolygon(const std::vector<int>& polygon, std::size_t vertex_count, Mesh* mesh) {
+  if (polygon.size() < 3) return false;
+  for (int index : polygon) {
+    if (index < 0 || static_cast<std::size_t>(index) >= vertex_count) return false;
+  }
+  for (std::size_t i = 1; i + 1 < polygon.size(); ++i) {
+    mesh->faces.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+  }
+  return true;
+}
+
+// ------------------------------------------------------------------------------------ PLY read
+
+enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+
+std::optional<PlyType> ParsePlyType(std::string_view name) {
+  static const std::map<std::string, PlyType, std::less<>> kTypes = {
+      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
+      {"uint8", PlyType::kUint8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUint16},  {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},    {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
+      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"float64", PlyType::kFloat64}};
+  const auto it = kTypes.find(name);
+  if (it == kTypes.end()) return std::nullopt;
+  return it->second;
+}
+
+std::size_t PlyTypeSize(PlyType type) {
+  switch (type) {
+    case PlyType::kInt8:
+    case PlyType::kUint8:
+      return 1;
+    case PlyType::kInt16:
+    case PlyType::kUint16:
+      return 2;
+    case PlyType::kInt32:
+    case PlyType::kUint32:
+    case PlyType::kFloat32:
+      return 4;
+    case PlyType::kFloat64:
+      return 8;
+  }
+  return 0;
+}
+
+struct PlyProperty {
+  std::string name;
+  PlyType type = PlyType::kFloat32;
+  bool is_list = false;
+  PlyType count_type = PlyType::kUint8;
+};
+
+struct PlyElement {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<PlyProperty> properties;
+};
+
+// Reads values one at a time from the body of a PLY file, binary or ASCII.
+class PlyBodyReader {
+ public:
+  PlyBodyReader(std::string_view body, bool ascii) : body_(body), ascii_(ascii) {}
+
+  bool Read(PlyType type, double* value) {
+    if (ascii_) return ReadAscii(value);
+    const std::size_t size = PlyTypeSize(type);
+    if (pos_ + size > body_.size()) return false;
+    const char* p = body_.data() + pos_;
+    pos_ += size;
+    switch (type) {
+      case PlyType::kInt8:
+        *value = Load<std::int8_t>(p);
+        break;
+      case PlyType::kUint8:
+        *value = Load<std::uint8_t>(p);
+        break;
+      case PlyType::kInt16:
+        *value = Load<std::int16_t>(p);
+        break;
+      case PlyType::kUint16:
+        *value = Load<std::uint16_t>(p);
+        break;
+      case PlyType::kInt32:
+        *value = Load<std::int32_t>(p);
+        break;
+      case PlyType::kUint32:
+        *value = Load<std::uint32_t>(p);
+        break;
+      case PlyType::kFloat32:
+        *value = Load<float>(p);
+        break;
+      case PlyType::kFloat64:
+        *value = Load<double>(p);
+        break;
+    }
+    return true;
+  }
+
+ private:
+  template <class T>
+  static double Load(const char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return static_cast<double>(v);
+  }
+
+  bool ReadAscii(double* value) {
+    while (pos_ < body_.size() && std::isspace(static_cast<unsigned char>(body_[pos_]))) ++pos_;
+    if (pos_ >= body_.size()) return false;
+    const char* begin = body_.data() + pos_;
+    const auto result = std::from_chars(begin, body_.data() + body_.size(), *value);
+    if (result.ec != std::errc()) return false;
+    pos_ += static_cast<std::size_t>(result.ptr - begin);
+    return true;
+  }
+
+  std::string_view body_;
+  bool ascii_;
+  std::size_t pos_ = 0;
+};
+
+// ----------------------------------------------------------------------------------- VRML read
+
+// Tokens of a VRML file: words and numbers, with '[', ']', '{', '}' as their own tokens; commas
+// and comments are whitespace.
+std::vector<std::string_view> TokenizeVrml(std::string_view text) {
+  std::vector<std::string_view> tokens;
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const char c = text[i];
+    if (c == '#') {
+      while (i < text.size() && text[i] != '\n') ++i;
+    } else if (std::isspace(static_cast<unsigned char>(c)) || c == ',') {
+      ++i;
+    } else if (c == '[' || c == ']' || c == '{' || c == '}') {
+      tokens.push_back(text.substr(i, 1));
+      ++i;
+    } else if (c == '"') {
+      std::size_t j = i + 1;
+      while (j < text.size() && text[j] != '"') j += text[j] == '\\' ? 2 : 1;
+      j = std::min(j + 1, text.size());
+      tokens.push_back(text.substr(i, j - i));
+      i = j;
+    } else {
+      std::size_t j = i;
+      while (j < text.size() && !std::isspace(static_cast<unsigned char>(text[j])) &&
+             text[j] != ',' && text[j] != '[' && text[j] != ']' && text[j] != '{' &&
+             text[j] != '}' && text[j] != '#') {
+        ++j;
+      }
+      tokens.push_back(text.substr(i, j - i));
+      i = j;
+    }
+  }
+  return tokens;
+}
+
+// Numbers from tokens[*pos] (just past a '[') up to the matching ']'.
+template <class T>
+bool ReadNumberList(const std::vector<std::string_view>& tokens, std::size_t* pos,
+                    std::vector<T>* out) {
+  for (; *pos < tokens.size(); ++*pos) {
+    const std::string_view t = tokens[*pos];
+    if (t == "]") {
+      ++*pos;
+      return true;
+    }
+    T value{};
+    const auto result = std::from_chars(t.data(), t.data() + t.size(), value);
+    if (result.ec != std::errc() || result.ptr != t.data() + t.size()) return false;
+    out->push_back(value);
+  }
+  return false;
+}
+
+// Finds `field` '[' after tokens[from] and reads its numbers; false when the field is absent.
+template <class T>
+Expected<bool> ReadField(const std::vector<std::string_view>& tokens, std::size_t from,
+                         std::string_view field, const fs::path& path, std::vector<T>* out) {
+  for (std::size_t i = from; i + 1 < tokens.size(); ++i) {
+    if (tokens[i] != field || tokens[i + 1] != "[") continue;
+    std::size_t pos = i + 2;
+    if (!ReadNumberList(tokens, &pos, out)) {
+      return std::unexpected(BadFile(path, fmt::format("malformed {} list", field)));
+    }
+    return true;
+  }
+  return false;
+}
+
+std::size_t FindToken(const std::vector<std::string_view>& tokens, std::string_view token,
+                      std::size_t from = 0) {
+  for (std::size_t i = from; i < tokens.size(); ++i) {
+    if (tokens[i] == token) return i;
+  }
+  return tokens.size();
+}
+
+std::uint8_t ToByte(double channel01) {
+  return static_cast<std::uint8_t>(std::clamp(std::lround(channel01 * 255.0), 0L, 255L));
+}
+
+}  // namespace
+
+Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) return opened;
+  const bool colors = mesh.HasColors();
+  std::string header = "ply\nformat binary_little_endian 1.0\ncomment revolve: object frame, mm\n";
+  header += fmt::format("element vertex {}\n", mesh.vertices.size());
+  header += "property float x\nproperty float y\nproperty float z\n";
+  if (colors) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  header += fmt::format("element face {}\n", mesh.faces.size());
+  header += "property list uchar int vertex_indices\nend_header\n";
+  file.Append(header);
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3f& v = mesh.vertices[i];
+    file.AppendRaw(v.x());
+    file.AppendRaw(v.y());
+    file.AppendRaw(v.z());
+    if (colors) {
+      file.AppendRaw(mesh.colors[i][0]);
+      file.AppendRaw(mesh.colors[i][1]);
+      file.AppendRaw(mesh.colors[i][2]);
+    }
+  }
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    file.AppendRaw(std::uint8_t{3});
+    file.AppendRaw(std::int32_t{f[0]});
+    file.AppendRaw(std::int32_t{f[1]});
+    file.AppendRaw(std::int32_t{f[2]});
+  }
+  return file.Commit();
+}
+
+Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) return opened;
+  const bool colors = mesh.HasColors();
+  std::string text =
+      "#VRML V2.0 utf8\n"
+      "# revolve model. Points are object-frame millimetres (z up); the Transform shows them\n"
+      "# upright (y up) in metres.\n"
+      "NavigationInfo {\n  type [ \"EXAMINE\", \"ANY\" ]\n}\n"
+      "Transform {\n"
+      "  scale 0.001 0.001 0.001\n"
+      "  rotation 1 0 0 -1.5707963267948966\n"
+      "  children [\n"
+      "Shape {\n"
+      "  appearance Appearance {\n"
+      "    material Material {\n"
+      "      diffuseColor 0.8 0.8 0.8\n"
+      "    }\n"
+      "  }\n"
+      "  geometry IndexedFaceSet {\n"
+      "    solid TRUE\n"
+      "    ccw TRUE\n"
+      "    coord Coordinate {\n"
+      "      point [\n";
+  file.Append(text);
+  text.clear();
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    text += "        ";
+    AppendFloat(&text, v.x());
+    text += ' ';
+    AppendFloat(&text, v.y());
+    text += ' ';
+    AppendFloat(&text, v.z());
+    text += ",\n";
+    if (text.size() > (1 << 16)) {
+      file.Append(text);
+      text.clear();
+    }
+  }
+  text += "      ]\n    }\n";
+  if (colors) {
+    text += "    colorPerVertex TRUE\n    color Color {\n      color [\n";
+    for (const Color& c : mesh.colors) {
+      text += "        ";
+      for (int k = 0; k < 3; ++k) {
+        if (k > 0) text += ' ';
+        AppendFloat(&text, static_cast<float>(c[k] / 255.0));
+      }
+      text += ",\n";
+      if (text.size() > (1 << 16)) {
+        file.Append(text);
+        text.clear();
+      }
+    }
+    text += "      ]\n    }\n";
+  }
+  text += "    coordIndex [\n";
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    text += "      ";
+    for (int k = 0; k < 3; ++k) {
+      AppendInt(&text, f[k]);
+      text += ", ";
+    }
+    text += "-1,\n";
+    if (text.size() > (1 << 16)) {
+      file.Append(text);
+      text.clear();
+    }
+  }
+  text += "    ]\n  }\n}\n  ]\n}\n";
+  file.Append(text);
+  return file.Commit();
+}
+
+Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir,
+                                           std::string_view basename,
+                                           const std::vector<std::string>& formats) {
+  for (const std::string& format : formats) {
+    if (format != "ply" && format != "wrl") {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("unknown model format \"{}\" (expected ply or wrl)", format));
+    }
+  }
+  std::vector<fs::path> written;
+  for (const std::string& format : formats) {
+    const fs::path path = dir / fmt::format("{}.{}", basename, format);
+    if (std::find(written.begin(), written.end(), path) != written.end()) continue;
+    Expected<void> result = format == "ply" ? WritePly(mesh, path) : WriteVrml(mesh, path);
+    if (!result) return std::unexpected(result.error());
+    written.push_back(path);
+  }
+  return written;
+}
+
+Expected<Mesh> ReadPly(const fs::path& path) {
+  Expected<std::string> content = ReadWholeFile(path);
+  if (!content) return std::unexpected(content.error());
+  const std::string_view text = *content;
+  const std::size_t header_end = text.find("end_header");
+  if (!text.starts_with("ply") || header_end == std::string_view::npos) {
+    return std::unexpected(BadFile(path, "not a PLY file (no \"ply\" magic or no end_header)"));
+  }
+  std::size_t body_start = text.find('\n', header_end);
+  if (body_start == std::string_view::npos) return std::unexpected(BadFile(path, "no body"));
+  ++body_start;
+
+  std::istringstream header{std::string(text.substr(0, header_end))};
+  std::string line;
+  std::vector<PlyElement> elements;
+  bool ascii = false;
+  bool have_format = false;
+  while (std::getline(header, line)) {
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "format") {
+      std::string format;
+      words >> format;
+      if (format == "ascii") {
+        ascii = true;
+      } else if (format != "binary_little_endian") {
+        return std::unexpected(BadFile(path, fmt::format("unsupported PLY format \"{}\"", format)));
+      }
+      have_format = true;
+    } else if (keyword == "element") {
+      PlyElement element;
+      words >> element.name >> element.count;
+      if (!words) return std::unexpected(BadFile(path, "malformed element line: " + line));
+      elements.push_back(element);
+    } else if (keyword == "property") {
+      if (elements.empty()) return std::unexpected(BadFile(path, "property before element"));
+      PlyProperty property;
+      std::string type;
+      words >> type;
+      if (type == "list") {
+        std::string count_type;
+        words >> count_type >> type;
+        const auto ct = ParsePlyType(count_type);
+        if (!ct) return std::unexpected(BadFile(path, "unknown PLY type in: " + line));
+        property.is_list = true;
+        property.count_type = *ct;
+      }
+      const auto t = ParsePlyType(type);
+      words >> property.name;
+      if (!t || !words) return std::unexpected(BadFile(path, "malformed property: " + line));
+      property.type = *t;
+      elements.back().properties.push_back(property);
+    }
+  }
+  if (!have_format) return std::unexpected(BadFile(path, "no format line"));
+
+  Mesh mesh;
+  PlyBodyReader body(text.substr(body_start), ascii);
+  for (const PlyElement& element : elements) {
+    const bool is_vertex = element.name == "vertex";
+    const bool is_face = element.name == "face";
+    int x = -1, y = -1, z = -1, r = -1, g = -1, b = -1, list = -1;
+    for (std::size_t p = 0; p < element.properties.size(); ++p) {
+      const std::string& n = element.properties[p].name;
+      const int idx = static_cast<int>(p);
+      if (n == "x") x = idx;
+      if (n == "y") y = idx;
+      if (n == "z") z = idx;
+      if (n == "red") r = idx;
+      if (n == "green") g = idx;
+      if (n == "blue") b = idx;
+      if ((n == "vertex_indices" || n == "vertex_index") && element.properties[p].is_list) {
+        list = idx;
+      }
+    }
+    if (is_vertex && (x < 0 || y < 0 || z < 0)) {
+      return std::unexpected(BadFile(path, "vertex element lacks x, y or z"));
+    }
+    const bool has_color = is_vertex && r >= 0 && g >= 0 && b >= 0;
+    if (is_face && list < 0) {
+      return std::unexpected(BadFile(path, "face element lacks a vertex_indices list"));
+    }
+    std::vector<double> values(element.properties.size());
+    std::vector<int> polygon;
+    for (std::size_t i = 0; i < element.count; ++i) {
+      for (std::size_t p = 0; p < element.properties.size(); ++p) {
+        const PlyProperty& property = element.properties[p];
+        if (!property.is_list) {
+          if (!body.Read(property.type, &values[p])) {
+            return std::unexpected(BadFile(path, "truncated or malformed body"));
+          }
+          continue;
+        }
+        double count = 0;
+        if (!body.Read(property.count_type, &count) || count < 0) {
+          return std::unexpected(BadFile(path, "truncated or malformed body"));
+        }
+        polygon.clear();
+        for (int k = 0; k < static_cast<int>(count); ++k) {
+          double v = 0;
+          if (!body.Read(property.type, &v)) {
+            return std::unexpected(BadFile(path, "truncated or malformed body"));
+          }
+          polygon.push_back(static_cast<int>(v));
+        }
+        if (is_face && static_cast<int>(p) == list &&
+            !AddPolygon(polygon, mesh.vertices.size(), &mesh)) {
+          return std::unexpected(
+              BadFile(path, fmt::format("face {} has a bad vertex index or fewer than 3", i)));
+        }
+      }
+      if (is_vertex) {
+        mesh.vertices.emplace_back(static_cast<float>(values[x]), static_cast<float>(values[y]),
+                                   static_cast<float>(values[z]));
+        if (has_color) {
+          mesh.colors.emplace_back(static_cast<std::uint8_t>(values[r]),
+                                   static_cast<std::uint8_t>(values[g]),
+                                   static_cast<std::uint8_t>(values[b]));
+        }
+      }
+    }
+  }
+  return mesh;
+}
+
+Expected<Mesh> ReadVrml(const fs::path& path) {
+  Expected<std::string> content = ReadWholeFile(path);
+  if (!content) return std::unexpected(content.error());
+  if (!std::string_view(*content).starts_with("#VRML V2.0")) {
+    return std::unexpected(BadFile(path, "not a VRML 2.0 file (no \"#VRML V2.0\" header)"));
+  }
+  const std::vector<std::string_view> tokens = TokenizeVrml(*content);
+  const std::size_t face_set = FindToken(tokens, "IndexedFaceSet");
+  if (face_set == tokens.size()) return std::unexpected(BadFile(path, "no IndexedFaceSet"));
+  const std::size_t coordinate = FindToken(tokens, "Coordinate", face_set);
+  std::vector<float> points;
+  Expected<bool> found = ReadField(tokens, coordinate, "point", path, &points);
+  if (!found) return std::unexpected(found.error());
+  if (coordinate == tokens.size() || !*found || points.size() % 3 != 0) {
+    return std::unexpected(BadFile(path, "no Coordinate point list of x y z triples"));
+  }
+  Mesh mesh;
+  for (std::size_t i = 0; i < points.size(); i += 3) {
+    mesh.vertices.emplace_back(points[i], points[i + 1], points[i + 2]);
+  }
+  std::vector<int> indices;
+  found = ReadField(tokens, face_set, "coordIndex", path, &indices);
+  if (!found) return std::unexpected(found.error());
+  if (!*found) return std::unexpected(BadFile(path, "no coordIndex"));
+  std::vector<int> polygon;
+  for (std::size_t i = 0; i <= indices.size(); ++i) {
+    if (i == indices.size() || indices[i] == -1) {
+      if (!polygon.empty() && !AddPolygon(polygon, mesh.vertices.size(), &mesh)) {
+        return std::unexpected(BadFile(path, "coordIndex has a bad index or a short polygon"));
+      }
+      polygon.clear();
+    } else {
+      polygon.push_back(indices[i]);
+    }
+  }
+  const std::size_t color_node = FindToken(tokens, "Color", face_set);
+  if (color_node < tokens.size()) {
+    std::vector<float> channels;
+    found = ReadField(tokens, color_node, "color", path, &channels);
+    if (!found) return std::unexpected(found.error());
+    if (channels.size() != 3 * mesh.vertices.size()) {
+      return std::unexpected(BadFile(path, "Color must hold one r g b triple per point"));
+    }
+    for (std::size_t i = 0; i < channels.size(); i += 3) {
+      mesh.colors.emplace_back(ToByte(channels[i]), ToByte(channels[i + 1]),
+                               ToByte(channels[i + 2]));
+    }
+  }
+  return mesh;
+}
+
+}  // namespace revolve::reconstruct

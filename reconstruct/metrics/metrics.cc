@@ -1,0 +1,164 @@
+#include "reconstruct/metrics/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Dense>
+
+namespace revolve::reconstruct {
+namespace {
+
+DistanceStats Summarize(std::vector<double> distances) {
+  DistanceStats stats;
+  stats.samples = static_cast<std::int64_t>(distances.size());
+  if (distances.empty()) return stats;
+  double sum = 0.0;
+  double sum_sq = 0.0;
+  for (double d : distances) {
+    sum += d;
+    sum_sq += d * d;
+    stats.max_mm = std::max(stats.max_mm, d);
+  }
+  stats.mean_mm = sum / distances.size();
+  stats.rms_mm = std::sqrt(sum_sq / distances.size());
+  const std::size_t k = std::min(distances.size() - 1,
+                                 static_cast<std::size_t>(std::ceil(0.9 * distances.size())) - 1);
+  std::nth_element(distances.begin(), distances.begin() + k, distances.end());
+  stats.p90_mm = distances[k];
+  return stats;
+}
+
+Eigen::Vector3d Vertex(const Mesh& mesh, int index) { return mesh.vertices[index].cast<double>(); }
+
+}  // namespace
+
+MeshStats ComputeStats(const Mesh& mesh) {
+  MeshStats stats;
+  stats.vertex_count = static_cast<std::int64_t>(mesh.vertices.size());
+  stats.triangle_count = static_cast<std::int64_t>(mesh.faces.size());
+  if (mesh.faces.empty()) return stats;
+
+  stats.bbox_min_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  stats.bbox_max_mm = -stats.bbox_min_mm;
+  // Directed edge (a, b) -> uses; the key packs both indices.
+  std::unordered_map<std::uint64_t, int> directed;
+  directed.reserve(mesh.faces.size() * 3);
+  auto key = [](int a, int b) {
+    return (std::uint64_t{static_cast<std::uint32_t>(a)} << 32) | static_cast<std::uint32_t>(b);
+  };
+  double volume6 = 0.0;
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    const Eigen::Vector3d a = Vertex(mesh, f[0]);
+    const Eigen::Vector3d b = Vertex(mesh, f[1]);
+    const Eigen::Vector3d c = Vertex(mesh, f[2]);
+    for (const Eigen::Vector3d& p : {a, b, c}) {
+      stats.bbox_min_mm = stats.bbox_min_mm.cwiseMin(p);
+      stats.bbox_max_mm = stats.bbox_max_mm.cwiseMax(p);
+    }
+    stats.area_mm2 += 0.5 * (b - a).cross(c - a).norm();
+    volume6 += a.dot(b.cross(c));
+    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) ++stats.degenerate_triangles;
+    for (int e = 0; e < 3; ++e) ++directed[key(f[e], f[(e + 1) % 3])];
+  }
+  stats.volume_mm3 = volume6 / 6.0;
+  stats.oriented = true;
+  stats.closed = true;
+  for (const auto& [k, uses] : directed) {
+    const int a = static_cast<int>(k >> 32);
+    const int b = static_cast<int>(k & 0xffffffffu);
+    const auto reverse = directed.find(key(b, a));
+    const int reverse_uses = reverse == directed.end() ? 0 : reverse->second;
+    if (uses != 1) stats.oriented = false;
+    // Undirected edge {a, b} is used uses + reverse_uses times.
+    if (uses + reverse_uses != 2 || a == b) stats.closed = false;
+  }
+  return stats;
+}
+
+DistanceStats VertexDistance(const Mesh& mesh, const DistanceToTruth& truth) {
+  std::vector<double> distances;
+  distances.reserve(mesh.vertices.size());
+  for (const Eigen::Vector3f& v : mesh.vertices) distances.push_back(truth(v.cast<double>()));
+  return Summarize(std::move(distances));
+}
+
+DistanceStats SurfaceDistance(const Mesh& mesh, const DistanceToTruth& truth, int count,
+                              std::uint32_t seed) {
+  if (mesh.faces.empty() || count <= 0) return {};
+  std::vector<double> cumulative_area;
+  cumulative_area.reserve(mesh.faces.size());
+  double total = 0.0;
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    const Eigen::Vector3d a = Vertex(mesh, f[0]);
+    total += 0.5 * (Vertex(mesh, f[1]) - a).cross(Vertex(mesh, f[2]) - a).norm();
+    cumulative_area.push_back(total);
+  }
+  if (!(total > 0.0)) return {};
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> distances;
+  distances.reserve(count);
+  for (int i = 0; i < count; ++i) {
+    const double pick = unit(rng) * total;
+    const std::size_t t = std::min<std::size_t>(
+        std::upper_bound(cumulative_area.begin(), cumulative_area.end(), pick) -
+            cumulative_area.begin(),
+        mesh.faces.size() - 1);
+    const Eigen::Vector3i& f = mesh.faces[t];
+    double r1 = unit(rng);
+    double r2 = unit(rng);
+    if (r1 + r2 > 1.0) {
+      r1 = 1.0 - r1;
+      r2 = 1.0 - r2;
+    }
+    const Eigen::Vector3d a = Vertex(mesh, f[0]);
+    const Eigen::Vector3d p = a + r1 * (Vertex(mesh, f[1]) - a) + r2 * (Vertex(mesh, f[2]) - a);
+    distances.push_back(truth(p));
+  }
+  return Summarize(std::move(distances));
+}
+
+SphereFit FitSphere(const Mesh& mesh) {
+  SphereFit fit;
+  const int n = static_cast<int>(mesh.vertices.size());
+  if (n < 4) return fit;
+  // Centre and scale the points (unit rms distance) so the rank test below is meaningful.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3f& v : mesh.vertices) mean += v.cast<double>();
+  mean /= n;
+  double spread = 0.0;
+  for (const Eigen::Vector3f& v : mesh.vertices) spread += (v.cast<double>() - mean).squaredNorm();
+  spread = std::sqrt(spread / n);
+  if (!(spread > 0.0)) return fit;
+  Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    const Eigen::Vector3d p = (v.cast<double>() - mean) / spread;
+    const Eigen::Vector4d row(2.0 * p.x(), 2.0 * p.y(), 2.0 * p.z(), 1.0);
+    normal += row * row.transpose();
+    rhs += row * p.squaredNorm();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(normal);
+  if (eigen.info() != Eigen::Success || eigen.eigenvalues()[0] <= 1e-9 * eigen.eigenvalues()[3]) {
+    return fit;  // coplanar or otherwise degenerate points
+  }
+  const Eigen::Vector4d x = normal.ldlt().solve(rhs);
+  const double r2 = x[3] + x.head<3>().squaredNorm();
+  if (!(r2 > 0.0) || !x.allFinite()) return fit;
+  fit.centre_mm = mean + spread * x.head<3>();
+  fit.radius_mm = spread * std::sqrt(r2);
+  double sum_sq = 0.0;
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    const double r = (v.cast<double>() - fit.centre_mm).norm() - fit.radius_mm;
+    sum_sq += r * r;
+  }
+  fit.rms_residual_mm = std::sqrt(sum_sq / n);
+  fit.ok = true;
+  return fit;
+}
+
+}  // namespace revolve::reconstruct

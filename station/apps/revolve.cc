@@ -1,0 +1,61 @@
+// revolve: the command-line front end. Thin: parses arguments and calls the station library.
+#include <csignal>
+#include <iostream>
+#include <stop_token>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+
+#include "station/scan_command.h"
+
+namespace {
+
+// Turns SIGINT/SIGTERM into a stop request for the running command. The signals are blocked in
+// every thread and taken synchronously by a watcher thread, so no work happens in a handler.
+class SignalStop {
+ public:
+  SignalStop() {
+    sigemptyset(&set_);
+    sigaddset(&set_, SIGINT);
+    sigaddset(&set_, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
+    watcher_ = std::jthread([this](std::stop_token self) {
+      const timespec poll{0, 100'000'000};
+      while (!self.stop_requested()) {
+        if (sigtimedwait(&set_, nullptr, &poll) > 0) source_.request_stop();
+      }
+    });
+  }
+  std::stop_token token() const { return source_.get_token(); }
+
+ private:
+  sigset_t set_{};
+  std::stop_source source_;
+  std::jthread watcher_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"revolve: turntable 3D capture station"};
+  app.require_subcommand(1);
+
+  revolve::station::ScanCommandOptions scan_options;
+  CLI::App* scan = app.add_subcommand("scan", "Run one scan on the configured rig");
+  scan->add_option("--config", scan_options.config,
+                   "Config file (TOML); default: the embedded simulated rig");
+  scan->add_option("--out", scan_options.out,
+                   "Scan folder to create (must not exist or be empty); default: scans/<id>");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : revolve::station::kExitUsage;
+  }
+
+  SignalStop signals;
+  if (scan->parsed()) {
+    return revolve::station::RunScanCommand(scan_options, signals.token(), std::cout, std::cerr);
+  }
+  return revolve::station::kExitUsage;
+}

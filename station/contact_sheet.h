@@ -1,0 +1,19 @@
+// The contact sheet: every stop's frame with its silhouette outlined, on one PNG, so a person
+// sees at a glance what the station saw.
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace revolve::station {
+
+// A thumbnail (at most 192 px wide) of `frame` (CV_8UC3) with the outline of `mask` (CV_8UC1,
+// same size) drawn in green; an empty mask is marked with a red border.
+cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask);
+
+// Tiles in rows of up to 6, each labelled with its stop number. An empty list gives a small
+// black image.
+cv::Mat AssembleContactSheet(const std::vector<cv::Mat>& tiles);
+
+}  // namespace revolve::station

@@ -1,0 +1,63 @@
+#include "station/scan_folder.h"
+
+#include <chrono>
+#include <ctime>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "base/atomic_file.h"
+
+namespace revolve::station {
+
+Expected<ScanFolder> ScanFolder::Create(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_empty(dir, ec)) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: already exists and is not empty; a scan never overwrites "
+                                 "an earlier one (choose another --out or remove it)",
+                                 dir.string()));
+  }
+  for (const char* sub : {"frames", "masks", "model"}) {
+    std::filesystem::create_directories(dir / sub, ec);
+    if (ec) {
+      return MakeError(ErrorCode::kIo, fmt::format("{}: cannot create the scan folder: {}",
+                                                   (dir / sub).string(), ec.message()));
+    }
+  }
+  return ScanFolder(dir);
+}
+
+Expected<void> ScanFolder::WriteImage(const std::string& relative, const cv::Mat& image) const {
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png)) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("{}: cannot encode the image as PNG", (dir_ / relative).string()));
+  }
+  return WriteFileAtomically(
+      dir_ / relative,
+      std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+Expected<void> ScanFolder::WriteText(const std::string& relative, std::string_view text) const {
+  return WriteFileAtomically(dir_ / relative, text);
+}
+
+Expected<void> ScanFolder::WriteJson(const std::string& relative,
+                                     const nlohmann::json& json) const {
+  return WriteText(relative, json.dump(2) + "\n");
+}
+
+std::string StopFileName(int index) { return fmt::format("stop_{:03d}.png", index); }
+
+std::string NewScanId() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm local{};
+  localtime_r(&now, &local);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &local);
+  return buf;
+}
+
+}  // namespace revolve::station

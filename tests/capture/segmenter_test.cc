@@ -1,0 +1,213 @@
+// Silhouette segmentation on rendered frames and on masks with known defects.
+#include "capture/segmenter.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/segment/mask_ops.h"
+#include "capture/synthetic/synthetic_camera.h"
+
+namespace revolve::capture {
+namespace {
+
+double IoU(const cv::Mat& a, const cv::Mat& b) {
+  const double inter = cv::countNonZero(a & b);
+  const double uni = cv::countNonZero(a | b);
+  return uni > 0 ? inter / uni : 1.0;
+}
+
+std::unique_ptr<Segmenter> MakeSegmenter(const SegmentOptions& options = {}) {
+  auto segmenter = CreateSegmenter(options);
+  EXPECT_TRUE(segmenter.has_value());
+  return segmenter ? std::move(*segmenter) : nullptr;
+}
+
+std::unique_ptr<SyntheticCamera> MakeCamera(const std::string& object, double elevation_deg) {
+  SyntheticOptions options;
+  options.object = object;
+  options.elevation_deg = elevation_deg;
+  auto camera = SyntheticCamera::Create(options, std::make_shared<SimulatedPlate>());
+  EXPECT_TRUE(camera.has_value());
+  return camera ? std::move(*camera) : nullptr;
+}
+
+int Components(const cv::Mat& mask) {
+  cv::Mat labels;
+  return cv::connectedComponents(mask, labels, 8) - 1;
+}
+
+struct RenderCase {
+  std::string object;
+  double elevation_deg;
+  double angle_deg;
+};
+
+void PrintTo(const RenderCase& c, std::ostream* os) {
+  *os << c.object << " at elevation " << c.elevation_deg << " deg, plate " << c.angle_deg << " deg";
+}
+
+class SegmentRenderedTest : public ::testing::TestWithParam<RenderCase> {};
+
+TEST_P(SegmentRenderedTest, MatchesTheTrueMask) {
+  const RenderCase& c = GetParam();
+  auto camera = MakeCamera(c.object, c.elevation_deg);
+  const cv::Mat frame = camera->Render(c.angle_deg, 5);
+  const cv::Mat truth = camera->TrueMask(c.angle_deg);
+  for (const std::string method : {"otsu", "fixed"}) {
+    SegmentOptions options;
+    options.method = method;
+    options.threshold = 60;
+    auto mask = MakeSegmenter(options)->Segment(frame, cv::Mat());
+    ASSERT_TRUE(mask.has_value());
+    ASSERT_EQ(mask->type(), CV_8UC1);
+    ASSERT_EQ(mask->size(), frame.size());
+    EXPECT_EQ(cv::countNonZero((*mask != 0) & (*mask != 255)), 0);
+    EXPECT_GE(IoU(*mask, truth), 0.99) << method;
+    EXPECT_EQ(Components(*mask), 1);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Objects, SegmentRenderedTest,
+    ::testing::Values(RenderCase{"sphere", 0.0, 0.0}, RenderCase{"cylinder", 0.0, 30.0},
+                      RenderCase{"vase", 0.0, 75.0}, RenderCase{"vase", 25.0, -90.0},
+                      RenderCase{"cylinder", 30.0, 10.0}),
+    [](const auto& p) {
+      return p.param.object + "_elevation" + std::to_string(int(p.param.elevation_deg));
+    });
+
+TEST(Segment, OpeningRemovesSaltNoise) {
+  auto camera = MakeCamera("vase", 0.0);
+  cv::Mat frame = camera->Render(0.0, 0);
+  const cv::Mat truth = camera->TrueMask(0.0);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> u(0, frame.cols - 1), v(0, frame.rows - 1);
+  for (int i = 0; i < 2000; ++i) frame.at<cv::Vec3b>(v(rng), u(rng)) = cv::Vec3b(255, 255, 255);
+  SegmentOptions options;
+  options.keep_largest = false;  // the opening alone must clean the backdrop
+  auto mask = MakeSegmenter(options)->Segment(frame, cv::Mat());
+  ASSERT_TRUE(mask.has_value());
+  EXPECT_EQ(Components(*mask), 1);
+  EXPECT_GE(IoU(*mask, truth), 0.99);
+  // Without the opening the salt stays.
+  options.open_px = 0;
+  auto salty = MakeSegmenter(options)->Segment(frame, cv::Mat());
+  EXPECT_GT(Components(*salty), 100);
+}
+
+TEST(Segment, KeepsTheLargestComponentOnly) {
+  auto camera = MakeCamera("sphere", 0.0);
+  cv::Mat frame = camera->Render(0.0, 0);
+  const cv::Rect speck(20, 20, 12, 12);  // survives the opening
+  frame(speck).setTo(cv::Scalar(200, 200, 200));
+  auto mask = MakeSegmenter()->Segment(frame, cv::Mat());
+  ASSERT_TRUE(mask.has_value());
+  EXPECT_EQ(cv::countNonZero((*mask)(speck)), 0);
+  EXPECT_EQ(Components(*mask), 1);
+  EXPECT_GE(IoU(*mask, camera->TrueMask(0.0)), 0.99);
+  SegmentOptions keep_all;
+  keep_all.keep_largest = false;
+  auto both = MakeSegmenter(keep_all)->Segment(frame, cv::Mat());
+  EXPECT_GT(cv::countNonZero((*both)(speck)), speck.area() - 8);  // the opening rounds corners
+}
+
+TEST(Segment, FillsHoles) {
+  auto camera = MakeCamera("cylinder", 0.0);
+  cv::Mat frame = camera->Render(0.0, 0);
+  const cv::Mat truth = camera->TrueMask(0.0);
+  const cv::Rect hole(370, 280, 15, 10);  // well inside the cylinder's silhouette
+  ASSERT_EQ(cv::countNonZero(truth(hole)), hole.area());
+  frame(hole).setTo(cv::Scalar(10, 10, 10));
+  auto mask = MakeSegmenter()->Segment(frame, cv::Mat());
+  ASSERT_TRUE(mask.has_value());
+  EXPECT_EQ(cv::countNonZero((*mask)(hole)), hole.area());
+  EXPECT_GE(IoU(*mask, truth), 0.99);
+}
+
+TEST(MaskOps, FillHolesTreatsADiagonalRingAsClosed) {
+  cv::Mat ring = cv::Mat::zeros(9, 9, CV_8UC1);
+  // A diamond closed only through diagonal steps, around the centre pixel.
+  for (const cv::Point p : {cv::Point(4, 2), cv::Point(5, 3), cv::Point(6, 4), cv::Point(5, 5),
+                            cv::Point(4, 6), cv::Point(3, 5), cv::Point(2, 4), cv::Point(3, 3)}) {
+    ring.at<std::uint8_t>(p) = 255;
+  }
+  const cv::Mat filled = FillHoles(ring);
+  EXPECT_EQ(filled.at<std::uint8_t>(4, 4), 255);
+  EXPECT_EQ(filled.at<std::uint8_t>(3, 4), 255);
+  EXPECT_EQ(filled.at<std::uint8_t>(0, 0), 0);
+  EXPECT_EQ(cv::countNonZero(filled), 8 + 5);
+  // A component touching the border keeps its open bay.
+  cv::Mat bay = cv::Mat::zeros(6, 6, CV_8UC1);
+  bay.colRange(0, 6).rowRange(0, 1).setTo(255);
+  bay.colRange(0, 1).setTo(255);
+  bay.colRange(5, 6).setTo(255);
+  EXPECT_EQ(cv::countNonZero(FillHoles(bay)), cv::countNonZero(bay));
+}
+
+TEST(MaskOps, KeepLargestComponentOfNothingIsEmpty) {
+  const cv::Mat empty = cv::Mat::zeros(5, 7, CV_8UC1);
+  const cv::Mat kept = KeepLargestComponent(empty);
+  EXPECT_EQ(kept.size(), empty.size());
+  EXPECT_EQ(cv::countNonZero(kept), 0);
+}
+
+TEST(Segment, EmptySceneGivesAnEmptyMask) {
+  cv::Mat frame(240, 320, CV_8UC3, cv::Scalar::all(20));
+  cv::Mat noise(frame.size(), CV_8UC3);
+  cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(3));
+  frame += noise;
+  auto mask = MakeSegmenter()->Segment(frame, cv::Mat());
+  ASSERT_TRUE(mask.has_value());
+  EXPECT_EQ(cv::countNonZero(*mask), 0);
+  // A uniform image too.
+  mask = MakeSegmenter()->Segment(cv::Mat(10, 10, CV_8UC3, cv::Scalar::all(90)), cv::Mat());
+  ASSERT_TRUE(mask.has_value());
+  EXPECT_EQ(cv::countNonZero(*mask), 0);
+}
+
+TEST(Segment, AcceptsGreyAndBgraImages) {
+  auto camera = MakeCamera("sphere", 0.0);
+  const cv::Mat frame = camera->Render(0.0, 0);
+  const cv::Mat truth = camera->TrueMask(0.0);
+  cv::Mat grey, bgra;
+  cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(frame, bgra, cv::COLOR_BGR2BGRA);
+  for (const cv::Mat& image : {grey, bgra}) {
+    auto mask = MakeSegmenter()->Segment(image, cv::Mat());
+    ASSERT_TRUE(mask.has_value());
+    EXPECT_GE(IoU(*mask, truth), 0.99);
+  }
+}
+
+TEST(Segment, RejectsEmptyAndUnsupportedImages) {
+  auto segmenter = MakeSegmenter();
+  auto empty = segmenter->Segment(cv::Mat(), cv::Mat());
+  ASSERT_FALSE(empty.has_value());
+  EXPECT_EQ(empty.error().code, ErrorCode::kBadInput);
+  for (int type : {CV_16UC1, CV_32FC3, CV_8UC2}) {
+    auto result = segmenter->Segment(cv::Mat(8, 8, type, cv::Scalar::all(0)), cv::Mat());
+    ASSERT_FALSE(result.has_value());
+    EXPECT_EQ(result.error().code, ErrorCode::kBadInput);
+    EXPECT_NE(result.error().message.find("unsupported"), std::string::npos);
+  }
+}
+
+TEST(Segment, CreateRejectsBadOptions) {
+  SegmentOptions options;
+  options.method = "kmeans";
+  EXPECT_EQ(CreateSegmenter(options).error().code, ErrorCode::kBadInput);
+  options = {};
+  options.threshold = 256;
+  EXPECT_FALSE(CreateSegmenter(options).has_value());
+  options = {};
+  options.open_px = -1;
+  EXPECT_FALSE(CreateSegmenter(options).has_value());
+  options = {};
+  options.close_px = 51;
+  EXPECT_FALSE(CreateSegmenter(options).has_value());
+}
+
+}  // namespace
+}  // namespace revolve::capture

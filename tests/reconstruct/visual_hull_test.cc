@@ -1,0 +1,298 @@
+// The hierarchical carver against the per-voxel reference, and the point-test contract.
+#include "reconstruct/hull/visual_hull.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "reconstruct/metrics/metrics.h"
+#include "tests/reconstruct/sphere_scene.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+using testing::Sphere;
+using testing::SphereMask;
+using testing::StationRig;
+using testing::ViewOf;
+
+VoxelGrid Grid(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int resolution) {
+  Expected<VoxelGrid> grid = VoxelGrid::FromBox(lo, hi, resolution);
+  EXPECT_TRUE(grid.has_value());
+  return *grid;
+}
+
+// A silhouette with holes, bumps and thin parts: two spheres plus random discs drawn in and
+// punched out.
+cv::Mat IrregularMask(const Rig& rig, double angle_deg, std::mt19937* rng) {
+  cv::Mat mask = SphereMask(rig, angle_deg,
+                            {Sphere{{0.0, 0.0, 40.0}, 35.0}, Sphere{{20.0, 15.0, 75.0}, 18.0}});
+  std::uniform_int_distribution<int> u(0, mask.cols - 1);
+  std::uniform_int_distribution<int> v(0, mask.rows - 1);
+  std::uniform_int_distribution<int> r(1, std::max(2, mask.cols / 12));
+  for (int i = 0; i < 25; ++i) {
+    cv::circle(mask, cv::Point(u(*rng), v(*rng)), r(*rng), cv::Scalar(i % 2 ? 255 : 0), cv::FILLED);
+  }
+  return mask;
+}
+
+void ExpectSameOccupancy(const VisualHull& a, const VisualHull& b) {
+  ASSERT_EQ(a.grid().dims, b.grid().dims);
+  ASSERT_EQ(a.OccupiedCount(), b.OccupiedCount());
+  const Eigen::Vector3i d = a.grid().dims;
+  std::int64_t differences = 0;
+  for (int k = 0; k < d.z(); ++k) {
+    for (int j = 0; j < d.y(); ++j) {
+      for (int i = 0; i < d.x(); ++i) differences += a.Occupied(i, j, k) != b.Occupied(i, j, k);
+    }
+  }
+  EXPECT_EQ(differences, 0);
+}
+
+struct Scenario {
+  const char* name;
+  Rig rig;
+  Eigen::Vector3d lo, hi;
+  int resolution;
+  std::vector<double> angles_deg;
+};
+
+TEST(VisualHull, GridFromBox) {
+  VoxelGrid g = Grid({-60, -60, 0}, {60, 60, 120}, 192);
+  EXPECT_EQ(g.dims, Eigen::Vector3i(192, 192, 192));
+  EXPECT_DOUBLE_EQ(g.voxel_mm, 120.0 / 192);
+  g = Grid({0, 0, 0}, {100, 61, 30}, 50);  // voxel 2 mm; 61 mm needs 31 voxels
+  EXPECT_EQ(g.dims, Eigen::Vector3i(50, 31, 15));
+  EXPECT_TRUE(g.Centre(0, 0, 0).isApprox(Eigen::Vector3d(1, 1, 1)));
+  EXPECT_FALSE(VoxelGrid::FromBox({0, 0, 0}, {0, 1, 1}, 10).has_value());
+  EXPECT_FALSE(VoxelGrid::FromBox({0, 0, 0}, {1, 1, 1}, 0).has_value());
+  EXPECT_EQ(VoxelGrid::FromBox({1, 0, 0}, {0, 1, 1}, 10).error().code, ErrorCode::kBadInput);
+}
+
+TEST(VisualHull, HierarchicalEqualsNaive) {
+  std::vector<Scenario> scenarios = {
+      {"station, odd resolution, non-cubic box",
+       StationRig(),
+       {-50, -50, 0},
+       {50, 50, 90},
+       45,
+       {0, 30, 60, 90, 120, 150, 180, 210, 240, 270, 300, 330}},
+      // The camera stands inside the volume: voxels behind it and beside the frame.
+      {"camera inside the volume",
+       StationRig(50.0, 0.0, 40.0),
+       {-60, -60, 0},
+       {60, 60, 120},
+       37,
+       {0, 45, 90, 135, 180, 225, 270, 315}},
+      // The object leaves the frame (narrow field of view, close camera).
+      {"object leaves the frame",
+       StationRig(160.0, 10.0, 60.0, 320, 240, 25.0),
+       {-60, -60, 0},
+       {60, 60, 120},
+       63,
+       {0, 17, 41, 90, 133, 200, 287}},
+      {"elevated, tiny image",
+       StationRig(300.0, 35.0, 40.0, 64, 48, 40.0),
+       {-55, -45, 0},
+       {55, 45, 100},
+       33,
+       {0, 20, 40, 100, 170, 250, 330}},
+  };
+  std::mt19937 rng(7);
+  for (const Scenario& s : scenarios) {
+    SCOPED_TRACE(s.name);
+    const VoxelGrid grid = Grid(s.lo, s.hi, s.resolution);
+    VisualHull hierarchical(grid);
+    VisualHull naive(grid);
+    for (double angle : s.angles_deg) {
+      const cv::Mat mask = IrregularMask(s.rig, angle, &rng);
+      const View view = ViewOf(s.rig, angle);
+      ASSERT_TRUE(hierarchical.Integrate(mask, view).has_value());
+      ASSERT_TRUE(naive.IntegrateNaive(mask, view).has_value());
+      ExpectSameOccupancy(hierarchical, naive);
+    }
+    // Non-trivial: something carved, something left.
+    EXPECT_GT(naive.OccupiedCount(), 0);
+    EXPECT_LT(naive.OccupiedCount(), grid.VoxelCount());
+  }
+}
+
+TEST(VisualHull, HierarchicalEqualsNaiveOnSphere36Views) {
+  const Rig rig = StationRig();
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 97);
+  VisualHull hierarchical(grid);
+  VisualHull naive(grid);
+  for (int k = 0; k < 36; ++k) {
+    const cv::Mat mask = SphereMask(rig, 10.0 * k, Sphere{});
+    ASSERT_TRUE(hierarchical.Integrate(mask, ViewOf(rig, 10.0 * k)).has_value());
+    ASSERT_TRUE(naive.IntegrateNaive(mask, ViewOf(rig, 10.0 * k)).has_value());
+  }
+  ExpectSameOccupancy(hierarchical, naive);
+  // The hull of a sphere of radius 40 mm: roughly (4/3) pi 40^3 / voxel^3 voxels.
+  const double expected = 4.0 / 3.0 * M_PI * std::pow(40.0 / grid.voxel_mm, 3);
+  EXPECT_NEAR(hierarchical.OccupiedCount(), expected, 0.02 * expected);
+}
+
+TEST(VisualHull, AViewDoesNotCarveWhatItCannotSee) {
+  const VoxelGrid grid = Grid({-60, -60, 0}, {60, 60, 120}, 40);
+  const Rig rig = StationRig();
+  const cv::Mat empty(576, 768, CV_8UC1, cv::Scalar(0));
+
+  // Looking away from the volume: everything is behind the camera.
+  {
+    Rig away = rig;
+    away.cam_from_table.prerotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()));
+    VisualHull hull(grid);
+    ASSERT_TRUE(hull.Integrate(empty, ViewOf(away, 0.0)).has_value());
+    EXPECT_EQ(hull.OccupiedCount(), grid.VoxelCount());
+  }
+  // Looking beside the volume: everything projects outside the image.
+  {
+    View view = ViewOf(rig, 0.0);
+    view.pixel_from_object.row(0) += 5000.0 * view.pixel_from_object.row(2);  // u += 5000
+    VisualHull hull(grid);
+    ASSERT_TRUE(hull.Integrate(empty, view).has_value());
+    EXPECT_EQ(hull.OccupiedCount(), grid.VoxelCount());
+  }
+  // A close camera sees part of the volume: exactly the voxels whose centre projects outside
+  // the image (or lies behind the camera) survive an empty mask.
+  {
+    const Rig close = StationRig(80.0, 0.0, 60.0);
+    const View view = ViewOf(close, 0.0);
+    VisualHull hull(grid);
+    ASSERT_TRUE(hull.Integrate(empty, view).has_value());
+    std::int64_t unseen = 0;
+    for (int k = 0; k < grid.dims.z(); ++k) {
+      for (int j = 0; j < grid.dims.y(); ++j) {
+        for (int i = 0; i < grid.dims.x(); ++i) {
+          Eigen::Vector2d px;
+          const bool seen = view.Project(grid.Centre(i, j, k), &px) &&
+                            std::floor(px.x() + 0.5) >= 0 && std::floor(px.x() + 0.5) < 768 &&
+                            std::floor(px.y() + 0.5) >= 0 && std::floor(px.y() + 0.5) < 576;
+          unseen += !seen;
+          ASSERT_EQ(hull.Occupied(i, j, k), !seen) << i << " " << j << " " << k;
+        }
+      }
+    }
+    EXPECT_GT(unseen, 0);
+    EXPECT_LT(unseen, grid.VoxelCount());
+  }
+  // Seeing everything, an empty silhouette carves everything.
+  {
+    VisualHull hull(grid);
+    ASSERT_TRUE(hull.Integrate(empty, ViewOf(StationRig(1000.0, 0.0, 60.0), 0.0)).has_value());
+    EXPECT_EQ(hull.OccupiedCount(), 0);
+  }
+}
+
+TEST(VisualHull, RejectsMasksThatDoNotMatchTheView) {
+  VisualHull hull(Grid({-60, -60, 0}, {60, 60, 120}, 16));
+  const View view = ViewOf(StationRig(), 0.0);
+  Expected<void> result = hull.Integrate(cv::Mat(576, 767, CV_8UC1, cv::Scalar(0)), view);
+  ASSERT_FALSE(result.has_value());
+  EXPECT_EQ(result.error().code, ErrorCode::kBadInput);
+  result = hull.Integrate(cv::Mat(576, 768, CV_8UC3, cv::Scalar(0)), view);
+  ASSERT_FALSE(result.has_value());
+  EXPECT_EQ(result.error().code, ErrorCode::kBadInput);
+  EXPECT_EQ(hull.view_count(), 0);
+  EXPECT_EQ(hull.OccupiedCount(), 16 * 16 * 16);
+}
+
+TEST(VisualHull, ContainsAgreesWithOccupancyAtVoxelCentres) {
+  const Rig rig = StationRig();
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 41);
+  VisualHull hull(grid);
+  std::mt19937 rng(3);
+  for (double angle : {0.0, 50.0, 100.0, 160.0, 230.0}) {
+    ASSERT_TRUE(hull.Integrate(IrregularMask(rig, angle, &rng), ViewOf(rig, angle)).has_value());
+  }
+  for (int k = 0; k < grid.dims.z(); ++k) {
+    for (int j = 0; j < grid.dims.y(); ++j) {
+      for (int i = 0; i < grid.dims.x(); ++i) {
+        ASSERT_EQ(hull.Contains(grid.Centre(i, j, k)), hull.Occupied(i, j, k));
+      }
+    }
+  }
+  EXPECT_FALSE(hull.Contains(Eigen::Vector3d(0.0, 0.0, -0.1)));  // below the plate
+}
+
+TEST(VisualHull, SurfaceIsClosedAndLiesWithinTheGrid) {
+  const Rig rig = StationRig();
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 48);
+  VisualHull hull(grid);
+  // A sphere sunk 5 mm into the plate, and a blob above it.
+  const std::vector<Sphere> spheres = {Sphere{{0.0, 0.0, 30.0}, 35.0},
+                                       Sphere{{10.0, 5.0, 70.0}, 12.0}};
+  for (double angle : {0.0, 40.0, 80.0, 120.0, 160.0}) {
+    ASSERT_TRUE(hull.Integrate(SphereMask(rig, angle, spheres), ViewOf(rig, angle)).has_value());
+  }
+  const Mesh mesh = hull.ExtractSurface();
+  ASSERT_FALSE(mesh.faces.empty());
+  const MeshStats stats = ComputeStats(mesh);
+  EXPECT_TRUE(stats.closed);
+  EXPECT_TRUE(stats.oriented);
+  EXPECT_GT(stats.volume_mm3, 0.0);
+  // Vertices on edges leaving the grid sit exactly on the box (float rounding aside): the
+  // base on the plate is flat at z = 0.
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    ASSERT_TRUE((v.cast<double>().array() >= grid.origin_mm.array() - 1e-5).all());
+    ASSERT_TRUE((v.cast<double>().array() <= grid.MaxCorner().array() + 1e-5).all());
+  }
+  EXPECT_NEAR(stats.bbox_min_mm.z(), 0.0, 1e-6);
+}
+
+TEST(VisualHull, SurfaceVerticesEqualBruteForceBisection) {
+  // ExtractSurface tests only the views that can cut each edge; bisecting against every view
+  // must place every vertex at the same position.
+  const Rig rig = StationRig();
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 40);
+  VisualHull hull(grid);
+  std::mt19937 rng(5);
+  for (double angle : {0.0, 35.0, 70.0, 105.0, 140.0, 175.0, 210.0}) {
+    ASSERT_TRUE(hull.Integrate(IrregularMask(rig, angle, &rng), ViewOf(rig, angle)).has_value());
+  }
+  HullSurfaceOptions options;
+  options.keep_largest_component = false;
+  const Mesh mesh = hull.ExtractSurface(options);
+
+  BitVolume field(grid.dims);
+  for (int k = 0; k < grid.dims.z(); ++k) {
+    for (int j = 0; j < grid.dims.y(); ++j) {
+      for (int i = 0; i < grid.dims.x(); ++i) field.Set(i, j, k, hull.Occupied(i, j, k));
+    }
+  }
+  const EdgeCrossings brute_force = [&](const std::vector<GridEdge>& edges) {
+    std::vector<double> ts;
+    for (const GridEdge& e : edges) {
+      const Eigen::Vector3d a = grid.Centre(e.inside.x(), e.inside.y(), e.inside.z());
+      const Eigen::Vector3d d = grid.Centre(e.outside.x(), e.outside.y(), e.outside.z()) - a;
+      const bool leaves =
+          ((e.outside.array() < 0) || (e.outside.array() >= grid.dims.array())).any();
+      double lo = 0.0;
+      double hi = leaves ? 0.5 : 1.0;
+      if (leaves && hull.SurvivesAllViews(a + 0.5 * d)) {
+        ts.push_back(0.5);
+        continue;
+      }
+      for (int s = 0; s < options.bisection_steps; ++s) {
+        const double mid = 0.5 * (lo + hi);
+        (hull.SurvivesAllViews(a + mid * d) ? lo : hi) = mid;
+      }
+      ts.push_back(0.5 * (lo + hi));
+    }
+    return ts;
+  };
+  MarchingCubesOptions mc;
+  mc.keep_largest_component = false;
+  const Mesh expected = MarchingCubes(field, grid.Centre(0, 0, 0), grid.voxel_mm, brute_force, mc);
+  ASSERT_EQ(mesh.vertices.size(), expected.vertices.size());
+  ASSERT_EQ(mesh.faces, expected.faces);
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    ASSERT_EQ(mesh.vertices[v], expected.vertices[v]) << "vertex " << v;
+  }
+  EXPECT_GT(mesh.vertices.size(), 1000u);  // a non-trivial surface
+}
+
+}  // namespace
+}  // namespace revolve::reconstruct
