@@ -21,7 +21,9 @@ class HullReconstructor final : public Reconstructor {
   Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& /*image*/,
                            const View& view) override {
     const auto start = std::chrono::steady_clock::now();
-    if (Expected<void> result = hull_.Integrate(mask, view); !result) return result;
+    if (Expected<void> result = hull_.Integrate(mask, view); !result) {
+      return result;
+    }
     Logger("reconstruct")
         ->debug("hull: view {} carved in {:.1f} ms", hull_.view_count(),
                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -62,23 +64,33 @@ class HullReconstructor final : public Reconstructor {
 Expected<ReconstructOptions> ParseOptions(const config::Section& section) {
   ReconstructOptions options;
   Expected<std::string> method = section.String("method", options.method, {"hull"});
-  if (!method) return std::unexpected(method.error());
+  if (!method) {
+    return std::unexpected(method.error());
+  }
   options.method = *method;
 
   Expected<std::int64_t> resolution =
       section.Integer("resolution", options.resolution, kMinResolution, kMaxResolution);
-  if (!resolution) return std::unexpected(resolution.error());
+  if (!resolution) {
+    return std::unexpected(resolution.error());
+  }
   options.resolution = static_cast<int>(*resolution);
 
   Expected<double> radius_mm = section.Number("volume_radius_mm", 60.0, 1.0, 10000.0);
-  if (!radius_mm) return std::unexpected(radius_mm.error());
+  if (!radius_mm) {
+    return std::unexpected(radius_mm.error());
+  }
   Expected<double> height_mm = section.Number("volume_height_mm", 120.0, 1.0, 10000.0);
-  if (!height_mm) return std::unexpected(height_mm.error());
+  if (!height_mm) {
+    return std::unexpected(height_mm.error());
+  }
   options.bbox_min_mm = Eigen::Vector3d(-*radius_mm, -*radius_mm, 0.0);
   options.bbox_max_mm = Eigen::Vector3d(*radius_mm, *radius_mm, *height_mm);
 
   Expected<std::vector<std::string>> formats = section.Strings("formats", options.formats);
-  if (!formats) return std::unexpected(formats.error());
+  if (!formats) {
+    return std::unexpected(formats.error());
+  }
   if (formats->empty()) {
     return std::unexpected(
         section.BadValue("formats", "expected at least one of \"ply\", \"wrl\""));
@@ -114,7 +126,9 @@ Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& option
   }
   Expected<VoxelGrid> grid =
       VoxelGrid::FromBox(options.bbox_min_mm, options.bbox_max_mm, options.resolution);
-  if (!grid) return std::unexpected(grid.error());
+  if (!grid) {
+    return std::unexpected(grid.error());
+  }
   return std::make_unique<HullReconstructor>(*grid);
 }
 

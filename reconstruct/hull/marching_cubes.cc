@@ -18,16 +18,19 @@ BitVolume::BitVolume(const Eigen::Vector3i& dims) : dims_(dims.cwiseMax(0)) {
 
 std::int64_t BitVolume::Count() const {
   std::int64_t count = 0;
-  for (std::uint64_t w : words_) count += std::popcount(w);
+  for (std::uint64_t w : words_) {
+    count += std::popcount(w);
+  }
   return count;
 }
 
 namespace {
 
 // ---------------------------------------------------------------------------------------------
-// The case table. Corner c of a cell is at (c & 1, (c >> 1) & 1, (c >> 2) & 1). Edge e joins
-// kEdgeCorner[e][0] (lower) and kEdgeCorner[e][1] along axis e / 4; the other two coordinates of
-// the lower corner are (e & 1, (e >> 1) & 1) in increasing axis order.
+// The case table, generated at first use from the rule in the header. Corner c of a cell is at
+// (c & 1, (c >> 1) & 1, (c >> 2) & 1). Edge e runs along axis e / 4 from kEdges[e].lower_corner
+// to kEdges[e].upper_corner; the lower corner's other two coordinates are (e & 1, (e >> 1) & 1)
+// in increasing axis order.
 
 struct CubeEdge {
   int axis;
@@ -42,9 +45,15 @@ constexpr std::array<CubeEdge, 12> MakeEdges() {
     const int b0 = e & 1;
     const int b1 = (e >> 1) & 1;
     int c = 0;
-    if (axis == 0) c = (b0 << 1) | (b1 << 2);
-    if (axis == 1) c = b0 | (b1 << 2);
-    if (axis == 2) c = b0 | (b1 << 1);
+    if (axis == 0) {
+      c = (b0 << 1) | (b1 << 2);
+    }
+    if (axis == 1) {
+      c = b0 | (b1 << 2);
+    }
+    if (axis == 2) {
+      c = b0 | (b1 << 1);
+    }
     edges[e] = CubeEdge{axis, c, c | (1 << axis)};
   }
   return edges;
@@ -71,15 +80,20 @@ bool ShareFace(int e, int f) {
   const Eigen::Vector3d a = EdgeMidpoint(e);
   const Eigen::Vector3d b = EdgeMidpoint(f);
   for (int axis = 0; axis < 3; ++axis) {
-    if (axis == kEdges[e].axis || axis == kEdges[f].axis) continue;
-    if (a[axis] == b[axis]) return true;
+    if (axis == kEdges[e].axis || axis == kEdges[f].axis) {
+      continue;
+    }
+    if (a[axis] == b[axis]) {
+      return true;
+    }
   }
   return false;
 }
 
 struct CaseTable {
-  // Triangles of each case as local edge triples, terminated by -1.
-  std::array<std::array<std::int8_t, 3 * 12 + 1>, 256> triangles;
+  static constexpr std::uint8_t kEnd = 0xFF;
+  // Triangles of each case as local edge triples, terminated by kEnd.
+  std::array<std::array<std::uint8_t, 3 * 12 + 1>, 256> triangles;
 };
 
 // Minimum-total-chord triangulation of a loop with no chord joining two same-face vertices.
@@ -88,8 +102,12 @@ void TriangulateLoop(const std::vector<int>& loop, std::vector<int>* out) {
   const int n = static_cast<int>(loop.size());
   constexpr double kInvalid = std::numeric_limits<double>::infinity();
   auto chord = [&](int i, int j) {
-    if (j - i == 1 || (i == 0 && j == n - 1)) return 0.0;  // a side of the loop
-    if (ShareFace(loop[i], loop[j])) return kInvalid;
+    if (j - i == 1 || (i == 0 && j == n - 1)) {
+      return 0.0;  // a side of the loop
+    }
+    if (ShareFace(loop[i], loop[j])) {
+      return kInvalid;
+    }
     return (EdgeMidpoint(loop[i]) - EdgeMidpoint(loop[j])).norm();
   };
   std::vector<std::vector<double>> cost(n, std::vector<double>(n, 0.0));
@@ -99,7 +117,9 @@ void TriangulateLoop(const std::vector<int>& loop, std::vector<int>* out) {
       const int j = i + len;
       cost[i][j] = kInvalid;
       const double own = chord(i, j);
-      if (own == kInvalid) continue;
+      if (own == kInvalid) {
+        continue;
+      }
       for (int k = i + 1; k < j; ++k) {
         const double c = cost[i][k] + cost[k][j] + own;
         if (c < cost[i][j]) {
@@ -110,13 +130,16 @@ void TriangulateLoop(const std::vector<int>& loop, std::vector<int>* out) {
     }
   }
   if (n < 3 || cost[0][n - 1] == kInvalid) {
-    std::abort();  // the rule always admits a triangulation; checked by tests at table build
+    // The rule always admits one; marching_cubes_test builds and checks all 256 cases.
+    std::abort();
   }
   std::vector<std::pair<int, int>> stack = {{0, n - 1}};
   while (!stack.empty()) {
     auto [i, j] = stack.back();
     stack.pop_back();
-    if (j - i < 2) continue;
+    if (j - i < 2) {
+      continue;
+    }
     const int k = split[i][j];
     out->insert(out->end(), {loop[i], loop[k], loop[j]});
     stack.push_back({i, k});
@@ -144,16 +167,24 @@ CaseTable BuildCaseTable() {
         normal[axis] = side ? 1.0 : -1.0;
         for (int r = 0; r < 4; ++r) {
           const int prev = (r + 3) % 4;
-          if (!inside(ring[r]) || inside(ring[prev])) continue;  // not the start of a run
+          if (!inside(ring[r]) || inside(ring[prev])) {
+            continue;  // not the start of a run
+          }
           int end = r;
-          while (inside(ring[(end + 1) % 4])) end = (end + 1) % 4;
+          while (inside(ring[(end + 1) % 4])) {
+            end = (end + 1) % 4;
+          }
           int a = EdgeBetween(ring[prev], ring[r]);
           int b = EdgeBetween(ring[end], ring[(end + 1) % 4]);
           const Eigen::Vector3d pa = EdgeMidpoint(a);
           const Eigen::Vector3d pb = EdgeMidpoint(b);
           const Eigen::Vector3d pc = CornerPosition(ring[r]);
-          if ((pb - pa).cross(pc - pa).dot(normal) > 0.0) std::swap(a, b);
-          if (next[a] != -1) std::abort();
+          if ((pb - pa).cross(pc - pa).dot(normal) > 0.0) {
+            std::swap(a, b);
+          }
+          if (next[a] != -1) {
+            std::abort();
+          }
           next[a] = b;
         }
       }
@@ -161,19 +192,23 @@ CaseTable BuildCaseTable() {
     std::vector<int> triangles;
     std::array<bool, 12> used{};
     for (int start = 0; start < 12; ++start) {
-      if (next[start] == -1 || used[start]) continue;
+      if (next[start] == -1 || used[start]) {
+        continue;
+      }
       std::vector<int> loop;
       for (int e = start; !used[e]; e = next[e]) {
         used[e] = true;
         loop.push_back(e);
-        if (next[e] == -1) std::abort();
+        if (next[e] == -1) {
+          std::abort();
+        }
       }
       TriangulateLoop(loop, &triangles);
     }
     auto& row = table.triangles[config];
-    std::fill(row.begin(), row.end(), std::int8_t{-1});
+    std::fill(row.begin(), row.end(), CaseTable::kEnd);
     for (std::size_t i = 0; i < triangles.size(); ++i) {
-      row[i] = static_cast<std::int8_t>(triangles[i]);
+      row[i] = static_cast<std::uint8_t>(triangles[i]);
     }
   }
   return table;
@@ -199,7 +234,9 @@ struct UnionFind {
   void Unite(int a, int b) {
     a = Find(a);
     b = Find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    if (a != b) {
+      parent[std::max(a, b)] = std::min(a, b);
+    }
   }
 };
 
@@ -207,35 +244,49 @@ struct UnionFind {
 
 int KeepLargestComponent(Mesh* mesh) {
   const int vertex_count = static_cast<int>(mesh->vertices.size());
-  if (mesh->faces.empty()) return 0;
+  if (mesh->faces.empty()) {
+    return 0;
+  }
   UnionFind sets(vertex_count);
   for (const Eigen::Vector3i& f : mesh->faces) {
     sets.Unite(f[0], f[1]);
     sets.Unite(f[1], f[2]);
   }
   std::vector<int> triangles_of_root(vertex_count, 0);
-  for (const Eigen::Vector3i& f : mesh->faces) ++triangles_of_root[sets.Find(f[0])];
+  for (const Eigen::Vector3i& f : mesh->faces) {
+    ++triangles_of_root[sets.Find(f[0])];
+  }
   int components = 0;
   int best_root = -1;
   for (int v = 0; v < vertex_count; ++v) {
-    if (triangles_of_root[v] == 0) continue;
+    if (triangles_of_root[v] == 0) {
+      continue;
+    }
     ++components;
-    if (best_root < 0 || triangles_of_root[v] > triangles_of_root[best_root]) best_root = v;
+    if (best_root < 0 || triangles_of_root[v] > triangles_of_root[best_root]) {
+      best_root = v;
+    }
   }
-  if (components <= 1) return components;
+  if (components <= 1) {
+    return components;
+  }
 
   std::vector<int> new_index(vertex_count, -1);
   Mesh kept;
   const bool colors = mesh->HasColors();
   for (const Eigen::Vector3i& f : mesh->faces) {
-    if (sets.Find(f[0]) != best_root) continue;
+    if (sets.Find(f[0]) != best_root) {
+      continue;
+    }
     Eigen::Vector3i g;
     for (int c = 0; c < 3; ++c) {
       int& idx = new_index[f[c]];
       if (idx < 0) {
         idx = static_cast<int>(kept.vertices.size());
         kept.vertices.push_back(mesh->vertices[f[c]]);
-        if (colors) kept.colors.push_back(mesh->colors[f[c]]);
+        if (colors) {
+          kept.colors.push_back(mesh->colors[f[c]]);
+        }
       }
       g[c] = idx;
     }
@@ -250,7 +301,9 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
   const CaseTable& table = Table();
   Mesh mesh;
   const Eigen::Vector3i& dims = field.dims();
-  if (dims.minCoeff() <= 0 || field.Count() == 0) return mesh;
+  if (dims.minCoeff() <= 0 || field.Count() == 0) {
+    return mesh;
+  }
 
   // A copy padded by one empty sample on every side: padded sample p is field sample p - 1.
   const Eigen::Vector3i n = dims + Eigen::Vector3i::Constant(2);
@@ -265,7 +318,9 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
         dst[w] = (src[w] << 1) | carry;
         carry = src[w] >> 63;
       }
-      if (src_words < padded.words_per_row()) dst[src_words] = carry;
+      if (src_words < padded.words_per_row()) {
+        dst[src_words] = carry;
+      }
     }
   }
 
@@ -316,7 +371,9 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
           const int bit = std::countr_zero(active);
           active &= active - 1;
           const int px = w * 64 + bit;
-          if (px > last_cell) break;
+          if (px > last_cell) {
+            break;
+          }
           int config = 0;
           for (int c = 0; c < 8; ++c) {
             const int x = px + (c & 1);
@@ -326,7 +383,7 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
           const auto& tris = table.triangles[config];
           int local[12];
           std::fill(std::begin(local), std::end(local), -1);
-          for (int t = 0; tris[t] >= 0; t += 3) {
+          for (int t = 0; tris[t] != CaseTable::kEnd; t += 3) {
             Eigen::Vector3i face;
             for (int v = 0; v < 3; ++v) {
               const int e = static_cast<int>(tris[t + v]);
@@ -342,7 +399,9 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
                   const bool hi = (c >> 2) & 1;
                   slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
                 }
-                if (*slot < 0) *slot = make_vertex(p0, edge.axis);
+                if (*slot < 0) {
+                  *slot = make_vertex(p0, edge.axis);
+                }
                 local[e] = *slot;
               }
               face[v] = local[e];
@@ -354,8 +413,12 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
     }
   }
   std::vector<double> t;
-  if (crossings) t = crossings(cut_edges);
-  if (t.size() != cut_edges.size()) t.assign(cut_edges.size(), 0.5);
+  if (crossings) {
+    t = crossings(cut_edges);
+  }
+  if (t.size() != cut_edges.size()) {
+    t.assign(cut_edges.size(), 0.5);
+  }
   mesh.vertices.reserve(cut_edges.size());
   for (std::size_t v = 0; v < cut_edges.size(); ++v) {
     const GridEdge& edge = cut_edges[v];
@@ -365,7 +428,9 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
         spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
     mesh.vertices.push_back(position.cast<float>());
   }
-  if (options.keep_largest_component) KeepLargestComponent(&mesh);
+  if (options.keep_largest_component) {
+    KeepLargestComponent(&mesh);
+  }
   return mesh;
 }
 

@@ -125,17 +125,27 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
   return data;
 }
 
-// The carver's hot path (hierarchical leaves, the naive reference, bisection): kept inline.
+// The point test on a projected point h = P * [X; 1]; its callers compute h with Project's
+// expression (in the same order), so every path gives the same answer for the same point.
+[[gnu::always_inline]] inline bool VisualHull::SurvivesProjected(const ViewData& view, double x,
+                                                                 double y, double w) {
+  if (!(w > 0.0)) {
+    return true;  // behind the camera (or NaN): not seen
+  }
+  const double inv_w = 1.0 / w;
+  const double fu = x * inv_w + 0.5;
+  const double fv = y * inv_w + 0.5;
+  if (!(fu >= 0.0 && fv >= 0.0 && fu < view.mask01.cols && fv < view.mask01.rows)) {
+    return true;  // outside the image: not seen
+  }
+  return view.mask01.data[static_cast<std::size_t>(view.mask01.step[0]) * static_cast<int>(fv) +
+                          static_cast<int>(fu)] != 0;
+}
+
 [[gnu::always_inline]] inline bool VisualHull::PointSurvives(
     const ViewData& view, const Eigen::Vector3d& point_mm) const {
   const Homogeneous h = Project(view.pixel_from_object, point_mm);
-  if (!(h.w > 0.0)) return true;  // behind the camera (or NaN): not seen
-  const double inv_w = 1.0 / h.w;
-  const double fu = h.x * inv_w + 0.5;
-  const double fv = h.y * inv_w + 0.5;
-  if (!(fu >= 0.0 && fv >= 0.0 && fu < view.mask01.cols && fv < view.mask01.rows)) return true;
-  return view.mask01.data[static_cast<std::size_t>(view.mask01.step[0]) * static_cast<int>(fv) +
-                          static_cast<int>(fu)] != 0;
+  return SurvivesProjected(view, h.x, h.y, h.w);
 }
 
 [[gnu::always_inline]] inline bool VisualHull::VoxelSurvives(const ViewData& view, int i, int j,
@@ -171,7 +181,9 @@ VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat&
   int in_front = 0;
   for (int c = 0; c < count; ++c) {
     const Homogeneous h = Project(view.pixel_from_object, points[c]);
-    if (!(h.w > 0.0)) continue;
+    if (!(h.w > 0.0)) {
+      continue;
+    }
     ++in_front;
     const double u = h.x / h.w;
     const double v = h.y / h.w;
@@ -180,8 +192,12 @@ VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat&
     v_min = std::min(v_min, v);
     v_max = std::max(v_max, v);
   }
-  if (in_front == 0) return BlockClass::kUnaffected;  // all behind the camera: not seen
-  if (in_front < count) return BlockClass::kMixed;
+  if (in_front == 0) {
+    return BlockClass::kUnaffected;  // all behind the camera: not seen
+  }
+  if (in_front < count) {
+    return BlockClass::kMixed;
+  }
   // Nearest pixels, clamped to [-1, size] (enough to tell inside from outside).
   auto pixel = [](double x, int size) {
     return static_cast<int>(std::floor(std::clamp(x + 0.5, -1.0, size + 1.0)));
@@ -194,37 +210,63 @@ VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat&
   const int cv0 = std::max(v0, 0);
   const int cu1 = std::min(u1, sat.width - 1);
   const int cv1 = std::min(v1, sat.height - 1);
-  if (cu0 > cu1 || cv0 > cv1) return BlockClass::kUnaffected;  // projects outside the image
+  if (cu0 > cu1 || cv0 > cv1) {
+    return BlockClass::kUnaffected;  // projects outside the image
+  }
   const std::int64_t area = std::int64_t{cu1 - cu0 + 1} * (cv1 - cv0 + 1);
   std::int64_t mask_count = 0;
   if (area <= kDirectCountMaxArea) {
     // Small rectangles (surface edges): the 0/1 mask itself is closer in cache than the table.
     for (int v = cv0; v <= cv1; ++v) {
       const std::uint8_t* row = view.mask01.ptr<std::uint8_t>(v);
-      for (int u = cu0; u <= cu1; ++u) mask_count += row[u];
+      for (int u = cu0; u <= cu1; ++u) {
+        mask_count += row[u];
+      }
     }
   } else {
     mask_count = sat.Count(cu0, cv0, cu1, cv1);
   }
   // Every point that is seen lands on the silhouette; the others are not seen.
-  if (mask_count == area) return BlockClass::kUnaffected;
+  if (mask_count == area) {
+    return BlockClass::kUnaffected;
+  }
   const bool rect_inside = u0 >= 0 && v0 >= 0 && u1 < sat.width && v1 < sat.height;
-  if (mask_count == 0 && rect_inside) return BlockClass::kCarve;
+  if (mask_count == 0 && rect_inside) {
+    return BlockClass::kCarve;
+  }
   return BlockClass::kMixed;
 }
 
 bool VisualHull::CarveBrick(const ViewData& view, const Eigen::Vector3i& brick) {
   std::uint64_t& word = bricks_[BrickIndex(brick)];
-  std::uint64_t remaining = word;
+  const Matrix34d& p = view.pixel_from_object;
+  // Project's products for the brick's 4 centre coordinates along each axis, summed below in
+  // Project's order: bit-identical to VoxelSurvives (this file is built with
+  // -ffp-contract=off, so no fused multiply-add changes the rounding of either path).
+  double px[kBrick][3];
+  double py[kBrick][3];
+  double pz[kBrick][3];
   const Eigen::Vector3i base = brick * kBrick;
-  while (remaining != 0) {
-    const int bit = std::countr_zero(remaining);
-    remaining &= remaining - 1;
-    if (!VoxelSurvives(view, base.x() + (bit & 3), base.y() + ((bit >> 2) & 3),
-                       base.z() + (bit >> 4))) {
-      word &= ~(std::uint64_t{1} << bit);
+  for (int d = 0; d < kBrick; ++d) {
+    const Eigen::Vector3d c = grid_.Centre(base.x() + d, base.y() + d, base.z() + d);
+    for (int r = 0; r < 3; ++r) {
+      px[d][r] = p(r, 0) * c.x();
+      py[d][r] = p(r, 1) * c.y();
+      pz[d][r] = p(r, 2) * c.z();
     }
   }
+  std::uint64_t carved = 0;
+  for (std::uint64_t remaining = word; remaining != 0; remaining &= remaining - 1) {
+    const int bit = std::countr_zero(remaining);
+    const int x = bit & 3;
+    const int y = (bit >> 2) & 3;
+    const int z = bit >> 4;
+    const double hx = px[x][0] + py[y][0] + pz[z][0] + p(0, 3);
+    const double hy = px[x][1] + py[y][1] + pz[z][1] + p(1, 3);
+    const double hw = px[x][2] + py[y][2] + pz[z][2] + p(2, 3);
+    carved |= std::uint64_t{!SurvivesProjected(view, hx, hy, hw)} << bit;
+  }
+  word &= ~carved;
   return word != 0;
 }
 
@@ -234,19 +276,25 @@ void VisualHull::ClearBlock(int level, const Eigen::Vector3i& node) {
     return;
   }
   std::uint8_t& alive = alive_[level][NodeIndex(level, node)];
-  if (!alive) return;
+  if (!alive) {
+    return;
+  }
   alive = 0;
   const Eigen::Vector3i& child_dims = level_dims_[level - 1];
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i child = 2 * node + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    if ((child.array() < child_dims.array()).all()) ClearBlock(level - 1, child);
+    if ((child.array() < child_dims.array()).all()) {
+      ClearBlock(level - 1, child);
+    }
   }
 }
 
 bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level,
                        const Eigen::Vector3i& node) {
   if (level == 0) {
-    if (bricks_[BrickIndex(node)] == 0) return false;
+    if (bricks_[BrickIndex(node)] == 0) {
+      return false;
+    }
   } else if (!alive_[level][NodeIndex(level, node)]) {
     return false;
   }
@@ -263,12 +311,16 @@ bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level,
     case BlockClass::kMixed:
       break;
   }
-  if (level == 0) return CarveBrick(view, node);
+  if (level == 0) {
+    return CarveBrick(view, node);
+  }
   bool any = false;
   const Eigen::Vector3i& child_dims = level_dims_[level - 1];
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i child = 2 * node + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    if ((child.array() < child_dims.array()).all()) any |= Visit(view, sat, level - 1, child);
+    if ((child.array() < child_dims.array()).all()) {
+      any |= Visit(view, sat, level - 1, child);
+    }
   }
   alive_[level][NodeIndex(level, node)] = any ? 1 : 0;
   return any;
@@ -286,7 +338,9 @@ void VisualHull::RebuildFlags() {
           for (int c = 0; c < 8 && !any; ++c) {
             const Eigen::Vector3i child =
                 2 * node + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-            if (!(child.array() < child_dims.array()).all()) continue;
+            if (!(child.array() < child_dims.array()).all()) {
+              continue;
+            }
             any = level == 1 ? bricks_[BrickIndex(child)] != 0
                              : alive_[level - 1][NodeIndex(level - 1, child)] != 0;
           }
@@ -299,7 +353,9 @@ void VisualHull::RebuildFlags() {
 
 Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
   Expected<ViewData> data = Prepare(mask, view);
-  if (!data) return std::unexpected(data.error());
+  if (!data) {
+    return std::unexpected(data.error());
+  }
   const Sat sat = MakeSat(*data);
   Visit(*data, sat, static_cast<int>(level_dims_.size()) - 1, Eigen::Vector3i::Zero());
   views_.push_back(std::move(*data));
@@ -308,11 +364,15 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
 
 Expected<void> VisualHull::IntegrateNaive(const cv::Mat& mask, const View& view) {
   Expected<ViewData> data = Prepare(mask, view);
-  if (!data) return std::unexpected(data.error());
+  if (!data) {
+    return std::unexpected(data.error());
+  }
   for (int k = 0; k < grid_.dims.z(); ++k) {
     for (int j = 0; j < grid_.dims.y(); ++j) {
       for (int i = 0; i < grid_.dims.x(); ++i) {
-        if (!Occupied(i, j, k)) continue;
+        if (!Occupied(i, j, k)) {
+          continue;
+        }
         if (!VoxelSurvives(*data, i, j, k)) {
           const Eigen::Vector3i v(i, j, k);
           const int bit = (i & 3) | ((j & 3) << 2) | ((k & 3) << 4);
@@ -337,13 +397,17 @@ bool VisualHull::Occupied(int i, int j, int k) const {
 
 std::int64_t VisualHull::OccupiedCount() const {
   std::int64_t count = 0;
-  for (std::uint64_t w : bricks_) count += std::popcount(w);
+  for (std::uint64_t w : bricks_) {
+    count += std::popcount(w);
+  }
   return count;
 }
 
 bool VisualHull::SurvivesAllViews(const Eigen::Vector3d& point_mm) const {
   for (const ViewData& view : views_) {
-    if (!PointSurvives(view, point_mm)) return false;
+    if (!PointSurvives(view, point_mm)) {
+      return false;
+    }
   }
   return true;
 }
@@ -362,11 +426,15 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
     for (int y = 0; y < brick_dims_.y(); ++y) {
       for (int x = 0; x < brick_dims_.x(); ++x) {
         const std::uint64_t word = bricks_[BrickIndex(Eigen::Vector3i(x, y, z))];
-        if (word == 0) continue;
+        if (word == 0) {
+          continue;
+        }
         for (int dz = 0; dz < kBrick; ++dz) {
           for (int dy = 0; dy < kBrick; ++dy) {
             const std::uint64_t nibble = (word >> ((dy << 2) | (dz << 4))) & 0xF;
-            if (nibble == 0) continue;
+            if (nibble == 0) {
+              continue;
+            }
             // In-grid by construction: bits past the dims are never set.
             const int i = x * kBrick;
             field.Row(y * kBrick + dy, z * kBrick + dz)[i >> 6] |= nibble << (i & 63);
@@ -442,7 +510,9 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       brick_relevant[b] = ClassifyHull(view, sat, corners, 8) != BlockClass::kUnaffected;
     }
     for (std::size_t e = 0; e < n; ++e) {
-      if (!brick_relevant[brick_of_edge[e]]) continue;
+      if (!brick_relevant[brick_of_edge[e]]) {
+        continue;
+      }
       Eigen::Vector3d ends[2];
       Eigen::Vector3d d;
       double t_max = 1.0;

@@ -19,8 +19,10 @@
 // rounding is monotonic; the rectangle is widened by 1e-6 px against floating-point error, which
 // only makes it conservative). Mask count 0 and rectangle inside the image: carve the block.
 // Count equal to the rectangle's area clipped to the image: nothing in the block is carved.
-// Otherwise subdivide down to bricks, then test single voxels with the point test. The result is
-// bit-identical to IntegrateNaive, the per-voxel reference.
+// All corners behind the camera: nothing is seen. Otherwise (including a block straddling the
+// camera plane) subdivide down to bricks, then test single voxels with the point test. The
+// result is bit-identical to IntegrateNaive, the per-voxel reference (both evaluate the same
+// projection expression; visual_hull.cc is built without floating-point contraction).
 #pragma once
 
 #include <cstdint>
@@ -76,12 +78,13 @@ class VisualHull {
   int view_count() const { return static_cast<int>(views_.size()); }
 
   // Carves with one view (hierarchical). `mask`: CV_8UC1, view.height_px x view.width_px,
-  // non-zero = object. The mask is kept (as 0/1 bytes) for sub-voxel surface placement.
-  // Errors: bad_input for a wrong mask type or size.
+  // non-zero = object. The mask is kept (as 0/1 bytes: width x height bytes per view, 442 KB
+  // at 768x576) for sub-voxel surface placement. Errors: bad_input for a wrong mask type or
+  // size, or a non-finite projection.
   Expected<void> Integrate(const cv::Mat& mask, const View& view);
 
   // The reference: the point test on every still-occupied voxel. Same contract and same result
-  // as Integrate, ~50-100x slower; used by tests and benchmarks.
+  // as Integrate, 20-30x slower at 256^3; used by tests and benchmarks.
   Expected<void> IntegrateNaive(const cv::Mat& mask, const View& view);
 
   // Occupancy of voxel (i, j, k); false outside the grid.
@@ -115,6 +118,7 @@ class VisualHull {
   // The point test for voxel (i, j, k): true = survives `view`.
   bool VoxelSurvives(const ViewData& view, int i, int j, int k) const;
   bool PointSurvives(const ViewData& view, const Eigen::Vector3d& point_mm) const;
+  static bool SurvivesProjected(const ViewData& view, double x, double y, double w);
   static Sat MakeSat(const ViewData& view);
   // How `view` acts on the voxel centres lo..hi (inclusive).
   BlockClass Classify(const ViewData& view, const Sat& sat, const Eigen::Vector3i& lo,

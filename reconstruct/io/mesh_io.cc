@@ -34,13 +34,17 @@ class UniqueFd {
   ~UniqueFd() { Reset(); }
   int get() const { return fd_; }
   void Reset(int fd = -1) {
-    if (fd_ >= 0) ::close(fd_);
+    if (fd_ >= 0) {
+      ::close(fd_);
+    }
     fd_ = fd;
   }
   // Closes now and reports close(2)'s errno (0 on success).
   int Close() {
     int err = 0;
-    if (fd_ >= 0 && ::close(fd_) != 0) err = errno;
+    if (fd_ >= 0 && ::close(fd_) != 0) {
+      err = errno;
+    }
     fd_ = -1;
     return err;
   }
@@ -68,10 +72,14 @@ class AtomicFile {
 
   Expected<void> Open() {
     fs::path dir = path_.parent_path();
-    if (dir.empty()) dir = ".";
+    if (dir.empty()) {
+      dir = ".";
+    }
     std::string name = (dir / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
     const int fd = ::mkstemp(name.data());
-    if (fd < 0) return std::unexpected(IoError(path_, "cannot create the file", errno));
+    if (fd < 0) {
+      return std::unexpected(IoError(path_, "cannot create the file", errno));
+    }
     fd_.Reset(fd);
     temp_ = name;
     ::fchmod(fd, 0644);
@@ -81,7 +89,9 @@ class AtomicFile {
 
   void Append(std::string_view bytes) {
     buffer_.append(bytes);
-    if (buffer_.size() >= kBufferSize) Flush();
+    if (buffer_.size() >= kBufferSize) {
+      Flush();
+    }
   }
   template <class T>
   void AppendRaw(const T& value) {
@@ -90,8 +100,12 @@ class AtomicFile {
 
   Expected<void> Commit() {
     Flush();
-    if (write_errno_ != 0) return std::unexpected(IoError(path_, "cannot write", write_errno_));
-    if (::fsync(fd_.get()) != 0) return std::unexpected(IoError(path_, "cannot sync", errno));
+    if (write_errno_ != 0) {
+      return std::unexpected(IoError(path_, "cannot write", write_errno_));
+    }
+    if (::fsync(fd_.get()) != 0) {
+      return std::unexpected(IoError(path_, "cannot sync", errno));
+    }
     if (const int err = fd_.Close(); err != 0) {
       return std::unexpected(IoError(path_, "cannot close", err));
     }
@@ -101,9 +115,13 @@ class AtomicFile {
     temp_.clear();
     // Make the rename itself durable.
     fs::path dir = path_.parent_path();
-    if (dir.empty()) dir = ".";
+    if (dir.empty()) {
+      dir = ".";
+    }
     UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-    if (dir_fd.get() >= 0) ::fsync(dir_fd.get());
+    if (dir_fd.get() >= 0) {
+      ::fsync(dir_fd.get());
+    }
     return {};
   }
 
@@ -115,7 +133,9 @@ class AtomicFile {
     while (write_errno_ == 0 && done < buffer_.size()) {
       const ssize_t n = ::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
       if (n < 0) {
-        if (errno == EINTR) continue;
+        if (errno == EINTR) {
+          continue;
+        }
         write_errno_ = errno;
       } else {
         done += static_cast<std::size_t>(n);
@@ -150,7 +170,9 @@ Expected<std::string> ReadWholeFile(const fs::path& path) {
     return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
   }
   std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  if (!in) {
+    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  }
   std::ostringstream buffer;
   buffer << in.rdbuf();
   return buffer.str();
@@ -162,9 +184,13 @@ Error BadFile(const fs::path& path, std::string_view what) {
 
 // Validates face indices and appends fan triangles of `polygon`.
 bool AddPolygon(const std::vector<int>& polygon, std::size_t vertex_count, Mesh* mesh) {
-  if (polygon.size() < 3) return false;
+  if (polygon.size() < 3) {
+    return false;
+  }
   for (int index : polygon) {
-    if (index < 0 || static_cast<std::size_t>(index) >= vertex_count) return false;
+    if (index < 0 || static_cast<std::size_t>(index) >= vertex_count) {
+      return false;
+    }
   }
   for (std::size_t i = 1; i + 1 < polygon.size(); ++i) {
     mesh->faces.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
@@ -185,7 +211,9 @@ std::optional<PlyType> ParsePlyType(std::string_view name) {
       {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
       {"float64", PlyType::kFloat64}};
   const auto it = kTypes.find(name);
-  if (it == kTypes.end()) return std::nullopt;
+  if (it == kTypes.end()) {
+    return std::nullopt;
+  }
   return it->second;
 }
 
@@ -226,9 +254,13 @@ class PlyBodyReader {
   PlyBodyReader(std::string_view body, bool ascii) : body_(body), ascii_(ascii) {}
 
   bool Read(PlyType type, double* value) {
-    if (ascii_) return ReadAscii(value);
+    if (ascii_) {
+      return ReadAscii(value);
+    }
     const std::size_t size = PlyTypeSize(type);
-    if (pos_ + size > body_.size()) return false;
+    if (pos_ + size > body_.size()) {
+      return false;
+    }
     const char* p = body_.data() + pos_;
     pos_ += size;
     switch (type) {
@@ -269,11 +301,17 @@ class PlyBodyReader {
   }
 
   bool ReadAscii(double* value) {
-    while (pos_ < body_.size() && std::isspace(static_cast<unsigned char>(body_[pos_]))) ++pos_;
-    if (pos_ >= body_.size()) return false;
+    while (pos_ < body_.size() && std::isspace(static_cast<unsigned char>(body_[pos_]))) {
+      ++pos_;
+    }
+    if (pos_ >= body_.size()) {
+      return false;
+    }
     const char* begin = body_.data() + pos_;
     const auto result = std::from_chars(begin, body_.data() + body_.size(), *value);
-    if (result.ec != std::errc()) return false;
+    if (result.ec != std::errc()) {
+      return false;
+    }
     pos_ += static_cast<std::size_t>(result.ptr - begin);
     return true;
   }
@@ -293,7 +331,9 @@ std::vector<std::string_view> TokenizeVrml(std::string_view text) {
   while (i < text.size()) {
     const char c = text[i];
     if (c == '#') {
-      while (i < text.size() && text[i] != '\n') ++i;
+      while (i < text.size() && text[i] != '\n') {
+        ++i;
+      }
     } else if (std::isspace(static_cast<unsigned char>(c)) || c == ',') {
       ++i;
     } else if (c == '[' || c == ']' || c == '{' || c == '}') {
@@ -301,7 +341,9 @@ std::vector<std::string_view> TokenizeVrml(std::string_view text) {
       ++i;
     } else if (c == '"') {
       std::size_t j = i + 1;
-      while (j < text.size() && text[j] != '"') j += text[j] == '\\' ? 2 : 1;
+      while (j < text.size() && text[j] != '"') {
+        j += text[j] == '\\' ? 2 : 1;
+      }
       j = std::min(j + 1, text.size());
       tokens.push_back(text.substr(i, j - i));
       i = j;
@@ -331,7 +373,9 @@ bool ReadNumberList(const std::vector<std::string_view>& tokens, std::size_t* po
     }
     T value{};
     const auto result = std::from_chars(t.data(), t.data() + t.size(), value);
-    if (result.ec != std::errc() || result.ptr != t.data() + t.size()) return false;
+    if (result.ec != std::errc() || result.ptr != t.data() + t.size()) {
+      return false;
+    }
     out->push_back(value);
   }
   return false;
@@ -342,7 +386,9 @@ template <class T>
 Expected<bool> ReadField(const std::vector<std::string_view>& tokens, std::size_t from,
                          std::string_view field, const fs::path& path, std::vector<T>* out) {
   for (std::size_t i = from; i + 1 < tokens.size(); ++i) {
-    if (tokens[i] != field || tokens[i + 1] != "[") continue;
+    if (tokens[i] != field || tokens[i + 1] != "[") {
+      continue;
+    }
     std::size_t pos = i + 2;
     if (!ReadNumberList(tokens, &pos, out)) {
       return std::unexpected(BadFile(path, fmt::format("malformed {} list", field)));
@@ -355,7 +401,9 @@ Expected<bool> ReadField(const std::vector<std::string_view>& tokens, std::size_
 std::size_t FindToken(const std::vector<std::string_view>& tokens, std::string_view token,
                       std::size_t from = 0) {
   for (std::size_t i = from; i < tokens.size(); ++i) {
-    if (tokens[i] == token) return i;
+    if (tokens[i] == token) {
+      return i;
+    }
   }
   return tokens.size();
 }
@@ -368,12 +416,16 @@ std::uint8_t ToByte(double channel01) {
 
 Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
   AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) return opened;
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
   const bool colors = mesh.HasColors();
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment revolve: object frame, mm\n";
   header += fmt::format("element vertex {}\n", mesh.vertices.size());
   header += "property float x\nproperty float y\nproperty float z\n";
-  if (colors) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  if (colors) {
+    header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  }
   header += fmt::format("element face {}\n", mesh.faces.size());
   header += "property list uchar int vertex_indices\nend_header\n";
   file.Append(header);
@@ -399,7 +451,9 @@ Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
 
 Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
   AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) return opened;
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
   const bool colors = mesh.HasColors();
   std::string text =
       "#VRML V2.0 utf8\n"
@@ -442,7 +496,9 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
     for (const Color& c : mesh.colors) {
       text += "        ";
       for (int k = 0; k < 3; ++k) {
-        if (k > 0) text += ' ';
+        if (k > 0) {
+          text += ' ';
+        }
         AppendFloat(&text, static_cast<float>(c[k] / 255.0));
       }
       text += ",\n";
@@ -483,9 +539,13 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
   std::vector<fs::path> written;
   for (const std::string& format : formats) {
     const fs::path path = dir / fmt::format("{}.{}", basename, format);
-    if (std::find(written.begin(), written.end(), path) != written.end()) continue;
+    if (std::find(written.begin(), written.end(), path) != written.end()) {
+      continue;
+    }
     Expected<void> result = format == "ply" ? WritePly(mesh, path) : WriteVrml(mesh, path);
-    if (!result) return std::unexpected(result.error());
+    if (!result) {
+      return std::unexpected(result.error());
+    }
     written.push_back(path);
   }
   return written;
@@ -493,14 +553,18 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
 
 Expected<Mesh> ReadPly(const fs::path& path) {
   Expected<std::string> content = ReadWholeFile(path);
-  if (!content) return std::unexpected(content.error());
+  if (!content) {
+    return std::unexpected(content.error());
+  }
   const std::string_view text = *content;
   const std::size_t header_end = text.find("end_header");
   if (!text.starts_with("ply") || header_end == std::string_view::npos) {
     return std::unexpected(BadFile(path, "not a PLY file (no \"ply\" magic or no end_header)"));
   }
   std::size_t body_start = text.find('\n', header_end);
-  if (body_start == std::string_view::npos) return std::unexpected(BadFile(path, "no body"));
+  if (body_start == std::string_view::npos) {
+    return std::unexpected(BadFile(path, "no body"));
+  }
   ++body_start;
 
   std::istringstream header{std::string(text.substr(0, header_end))};
@@ -524,10 +588,14 @@ Expected<Mesh> ReadPly(const fs::path& path) {
     } else if (keyword == "element") {
       PlyElement element;
       words >> element.name >> element.count;
-      if (!words) return std::unexpected(BadFile(path, "malformed element line: " + line));
+      if (!words) {
+        return std::unexpected(BadFile(path, "malformed element line: " + line));
+      }
       elements.push_back(element);
     } else if (keyword == "property") {
-      if (elements.empty()) return std::unexpected(BadFile(path, "property before element"));
+      if (elements.empty()) {
+        return std::unexpected(BadFile(path, "property before element"));
+      }
       PlyProperty property;
       std::string type;
       words >> type;
@@ -535,18 +603,24 @@ Expected<Mesh> ReadPly(const fs::path& path) {
         std::string count_type;
         words >> count_type >> type;
         const auto ct = ParsePlyType(count_type);
-        if (!ct) return std::unexpected(BadFile(path, "unknown PLY type in: " + line));
+        if (!ct) {
+          return std::unexpected(BadFile(path, "unknown PLY type in: " + line));
+        }
         property.is_list = true;
         property.count_type = *ct;
       }
       const auto t = ParsePlyType(type);
       words >> property.name;
-      if (!t || !words) return std::unexpected(BadFile(path, "malformed property: " + line));
+      if (!t || !words) {
+        return std::unexpected(BadFile(path, "malformed property: " + line));
+      }
       property.type = *t;
       elements.back().properties.push_back(property);
     }
   }
-  if (!have_format) return std::unexpected(BadFile(path, "no format line"));
+  if (!have_format) {
+    return std::unexpected(BadFile(path, "no format line"));
+  }
 
   Mesh mesh;
   PlyBodyReader body(text.substr(body_start), ascii);
@@ -557,12 +631,24 @@ Expected<Mesh> ReadPly(const fs::path& path) {
     for (std::size_t p = 0; p < element.properties.size(); ++p) {
       const std::string& n = element.properties[p].name;
       const int idx = static_cast<int>(p);
-      if (n == "x") x = idx;
-      if (n == "y") y = idx;
-      if (n == "z") z = idx;
-      if (n == "red") r = idx;
-      if (n == "green") g = idx;
-      if (n == "blue") b = idx;
+      if (n == "x") {
+        x = idx;
+      }
+      if (n == "y") {
+        y = idx;
+      }
+      if (n == "z") {
+        z = idx;
+      }
+      if (n == "red") {
+        r = idx;
+      }
+      if (n == "green") {
+        g = idx;
+      }
+      if (n == "blue") {
+        b = idx;
+      }
       if ((n == "vertex_indices" || n == "vertex_index") && element.properties[p].is_list) {
         list = idx;
       }
@@ -619,17 +705,23 @@ Expected<Mesh> ReadPly(const fs::path& path) {
 
 Expected<Mesh> ReadVrml(const fs::path& path) {
   Expected<std::string> content = ReadWholeFile(path);
-  if (!content) return std::unexpected(content.error());
+  if (!content) {
+    return std::unexpected(content.error());
+  }
   if (!std::string_view(*content).starts_with("#VRML V2.0")) {
     return std::unexpected(BadFile(path, "not a VRML 2.0 file (no \"#VRML V2.0\" header)"));
   }
   const std::vector<std::string_view> tokens = TokenizeVrml(*content);
   const std::size_t face_set = FindToken(tokens, "IndexedFaceSet");
-  if (face_set == tokens.size()) return std::unexpected(BadFile(path, "no IndexedFaceSet"));
+  if (face_set == tokens.size()) {
+    return std::unexpected(BadFile(path, "no IndexedFaceSet"));
+  }
   const std::size_t coordinate = FindToken(tokens, "Coordinate", face_set);
   std::vector<float> points;
   Expected<bool> found = ReadField(tokens, coordinate, "point", path, &points);
-  if (!found) return std::unexpected(found.error());
+  if (!found) {
+    return std::unexpected(found.error());
+  }
   if (coordinate == tokens.size() || !*found || points.size() % 3 != 0) {
     return std::unexpected(BadFile(path, "no Coordinate point list of x y z triples"));
   }
@@ -639,8 +731,12 @@ Expected<Mesh> ReadVrml(const fs::path& path) {
   }
   std::vector<int> indices;
   found = ReadField(tokens, face_set, "coordIndex", path, &indices);
-  if (!found) return std::unexpected(found.error());
-  if (!*found) return std::unexpected(BadFile(path, "no coordIndex"));
+  if (!found) {
+    return std::unexpected(found.error());
+  }
+  if (!*found) {
+    return std::unexpected(BadFile(path, "no coordIndex"));
+  }
   std::vector<int> polygon;
   for (std::size_t i = 0; i <= indices.size(); ++i) {
     if (i == indices.size() || indices[i] == -1) {
@@ -656,7 +752,9 @@ Expected<Mesh> ReadVrml(const fs::path& path) {
   if (color_node < tokens.size()) {
     std::vector<float> channels;
     found = ReadField(tokens, color_node, "color", path, &channels);
-    if (!found) return std::unexpected(found.error());
+    if (!found) {
+      return std::unexpected(found.error());
+    }
     if (channels.size() != 3 * mesh.vertices.size()) {
       return std::unexpected(BadFile(path, "Color must hold one r g b triple per point"));
     }

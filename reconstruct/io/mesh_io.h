@@ -28,8 +28,9 @@ Expected<void> WritePly(const Mesh& mesh, const std::filesystem::path& path);
 // frame's millimetres, exactly as in the mesh.
 Expected<void> WriteVrml(const Mesh& mesh, const std::filesystem::path& path);
 
-// Writes `dir`/`basename`.<format> for each format ("ply", "wrl"); returns the paths written.
-// Errors: bad_input for an unknown format (nothing written), io naming the file otherwise.
+// Writes `dir`/`basename`.<format> for each format ("ply", "wrl"; duplicates written once);
+// returns the paths written. `dir` must exist. Errors: bad_input for an unknown format (nothing
+// written), io naming the file otherwise (files written before the failing one stay).
 Expected<std::vector<std::filesystem::path>> WriteModel(const Mesh& mesh,
                                                         const std::filesystem::path& dir,
                                                         std::string_view basename,

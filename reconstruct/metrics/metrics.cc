@@ -15,7 +15,9 @@ namespace {
 DistanceStats Summarize(std::vector<double> distances) {
   DistanceStats stats;
   stats.samples = static_cast<std::int64_t>(distances.size());
-  if (distances.empty()) return stats;
+  if (distances.empty()) {
+    return stats;
+  }
   double sum = 0.0;
   double sum_sq = 0.0;
   for (double d : distances) {
@@ -40,7 +42,9 @@ MeshStats ComputeStats(const Mesh& mesh) {
   MeshStats stats;
   stats.vertex_count = static_cast<std::int64_t>(mesh.vertices.size());
   stats.triangle_count = static_cast<std::int64_t>(mesh.faces.size());
-  if (mesh.faces.empty()) return stats;
+  if (mesh.faces.empty()) {
+    return stats;
+  }
 
   stats.bbox_min_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   stats.bbox_max_mm = -stats.bbox_min_mm;
@@ -61,8 +65,12 @@ MeshStats ComputeStats(const Mesh& mesh) {
     }
     stats.area_mm2 += 0.5 * (b - a).cross(c - a).norm();
     volume6 += a.dot(b.cross(c));
-    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) ++stats.degenerate_triangles;
-    for (int e = 0; e < 3; ++e) ++directed[key(f[e], f[(e + 1) % 3])];
+    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
+      ++stats.degenerate_triangles;
+    }
+    for (int e = 0; e < 3; ++e) {
+      ++directed[key(f[e], f[(e + 1) % 3])];
+    }
   }
   stats.volume_mm3 = volume6 / 6.0;
   stats.oriented = true;
@@ -72,9 +80,13 @@ MeshStats ComputeStats(const Mesh& mesh) {
     const int b = static_cast<int>(k & 0xffffffffu);
     const auto reverse = directed.find(key(b, a));
     const int reverse_uses = reverse == directed.end() ? 0 : reverse->second;
-    if (uses != 1) stats.oriented = false;
+    if (uses != 1) {
+      stats.oriented = false;
+    }
     // Undirected edge {a, b} is used uses + reverse_uses times.
-    if (uses + reverse_uses != 2 || a == b) stats.closed = false;
+    if (uses + reverse_uses != 2 || a == b) {
+      stats.closed = false;
+    }
   }
   return stats;
 }
@@ -82,13 +94,17 @@ MeshStats ComputeStats(const Mesh& mesh) {
 DistanceStats VertexDistance(const Mesh& mesh, const DistanceToTruth& truth) {
   std::vector<double> distances;
   distances.reserve(mesh.vertices.size());
-  for (const Eigen::Vector3f& v : mesh.vertices) distances.push_back(truth(v.cast<double>()));
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    distances.push_back(truth(v.cast<double>()));
+  }
   return Summarize(std::move(distances));
 }
 
 DistanceStats SurfaceDistance(const Mesh& mesh, const DistanceToTruth& truth, int count,
                               std::uint32_t seed) {
-  if (mesh.faces.empty() || count <= 0) return {};
+  if (mesh.faces.empty() || count <= 0) {
+    return {};
+  }
   std::vector<double> cumulative_area;
   cumulative_area.reserve(mesh.faces.size());
   double total = 0.0;
@@ -97,7 +113,9 @@ DistanceStats SurfaceDistance(const Mesh& mesh, const DistanceToTruth& truth, in
     total += 0.5 * (Vertex(mesh, f[1]) - a).cross(Vertex(mesh, f[2]) - a).norm();
     cumulative_area.push_back(total);
   }
-  if (!(total > 0.0)) return {};
+  if (!(total > 0.0)) {
+    return {};
+  }
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<double> distances;
@@ -125,15 +143,23 @@ DistanceStats SurfaceDistance(const Mesh& mesh, const DistanceToTruth& truth, in
 SphereFit FitSphere(const Mesh& mesh) {
   SphereFit fit;
   const int n = static_cast<int>(mesh.vertices.size());
-  if (n < 4) return fit;
+  if (n < 4) {
+    return fit;
+  }
   // Centre and scale the points (unit rms distance) so the rank test below is meaningful.
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3f& v : mesh.vertices) mean += v.cast<double>();
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    mean += v.cast<double>();
+  }
   mean /= n;
   double spread = 0.0;
-  for (const Eigen::Vector3f& v : mesh.vertices) spread += (v.cast<double>() - mean).squaredNorm();
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    spread += (v.cast<double>() - mean).squaredNorm();
+  }
   spread = std::sqrt(spread / n);
-  if (!(spread > 0.0)) return fit;
+  if (!(spread > 0.0)) {
+    return fit;
+  }
   Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
   Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
   for (const Eigen::Vector3f& v : mesh.vertices) {
@@ -148,7 +174,9 @@ SphereFit FitSphere(const Mesh& mesh) {
   }
   const Eigen::Vector4d x = normal.ldlt().solve(rhs);
   const double r2 = x[3] + x.head<3>().squaredNorm();
-  if (!(r2 > 0.0) || !x.allFinite()) return fit;
+  if (!(r2 > 0.0) || !x.allFinite()) {
+    return fit;
+  }
   fit.centre_mm = mean + spread * x.head<3>();
   fit.radius_mm = spread * std::sqrt(r2);
   double sum_sq = 0.0;

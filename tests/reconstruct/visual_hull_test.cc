@@ -118,6 +118,52 @@ TEST(VisualHull, HierarchicalEqualsNaive) {
   }
 }
 
+TEST(VisualHull, HierarchicalEqualsNaiveForAnyProjection) {
+  // Matrices as datasets ship them: skew, mirrored frames, arbitrary scale, affine cameras.
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const VoxelGrid grid = Grid({-40, -30, 0}, {40, 30, 70}, 51);
+  VisualHull hierarchical(grid);
+  VisualHull naive(grid);
+  for (int k = 0; k < 10; ++k) {
+    const Eigen::Matrix3d rotation =
+        Eigen::AngleAxisd(M_PI * unit(rng),
+                          Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized())
+            .matrix();
+    Eigen::Matrix3d intrinsics;
+    intrinsics << 900.0 + 200.0 * unit(rng), 30.0 * unit(rng), 320.0, 0.0, 900.0, 240.0, 0.0, 0.0,
+        1.0;
+    View view;
+    view.width_px = 640;
+    view.height_px = 480;
+    const Eigen::Vector3d centre(0.0, 0.0, 35.0);
+    const Eigen::Vector3d t =
+        Eigen::Vector3d(0.0, 0.0, 250.0 + 100.0 * unit(rng)) - rotation * centre;
+    if (k % 3 == 2) {
+      // Affine: orthographic rows, last row [0 0 0 s].
+      view.pixel_from_object.topLeftCorner<2, 3>() = 4.0 * rotation.topRows<2>();
+      view.pixel_from_object(0, 3) = 320.0 + 4.0 * t.x();
+      view.pixel_from_object(1, 3) = 240.0 + 4.0 * t.y();
+      view.pixel_from_object.row(2) << 0.0, 0.0, 0.0, 1.0;
+    } else {
+      view.pixel_from_object << intrinsics * rotation, intrinsics * t;
+      if (k % 2 == 1) view.pixel_from_object.row(0) *= -1.0;  // a mirrored image
+    }
+    view.pixel_from_object *= 0.5 + std::abs(unit(rng));  // any positive scale
+    cv::Mat mask(480, 640, CV_8UC1, cv::Scalar(0));
+    cv::circle(mask, cv::Point(320, 240), 170, cv::Scalar(255), cv::FILLED);
+    for (int i = 0; i < 20; ++i) {
+      cv::circle(mask, cv::Point(320 + 250 * unit(rng), 240 + 200 * unit(rng)),
+                 5 + 40 * std::abs(unit(rng)), cv::Scalar(i % 2 ? 255 : 0), cv::FILLED);
+    }
+    ASSERT_TRUE(hierarchical.Integrate(mask, view).has_value());
+    ASSERT_TRUE(naive.IntegrateNaive(mask, view).has_value());
+    ExpectSameOccupancy(hierarchical, naive);
+  }
+  EXPECT_GT(naive.OccupiedCount(), 0);
+  EXPECT_LT(naive.OccupiedCount(), grid.VoxelCount());
+}
+
 TEST(VisualHull, HierarchicalEqualsNaiveOnSphere36Views) {
   const Rig rig = StationRig();
   const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 97);
