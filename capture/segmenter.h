@@ -1,8 +1,13 @@
 // Silhouette segmentation: a frame in, a binary mask out.
+//
+// Every method ends with the same clean-up: the pixels outside the region of interest are
+// cleared, then an opening (removes specks), a closing (fills cracks), the largest 8-connected
+// component and hole filling.
 #pragma once
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -13,11 +18,40 @@ namespace revolve::capture {
 
 // [segment]
 struct SegmentOptions {
-  std::string method = "otsu";  // otsu | fixed
-  int threshold = 128;          // grey level for method = "fixed"
-  int open_px = 1;              // opening radius; 0 disables
-  int close_px = 1;             // closing radius; 0 disables
-  bool keep_largest = true;     // keep only the largest 8-connected component
+  // otsu | fixed: grey-level threshold against a dark or light backdrop (`backdrop`).
+  // background: colour distance to a frame of the empty scene (any backdrop; the plate and the
+  //             fixtures are in the background frame, so they never count).
+  // chroma:     distance from the backdrop's chroma (a green or blue screen).
+  std::string method = "otsu";
+  std::string backdrop = "dark";  // otsu, fixed: dark (object brighter) | light (object darker)
+  int threshold = 128;            // fixed: grey level separating object and backdrop
+  // otsu: when the two classes' mean grey levels differ by less than this, the frame holds no
+  // object (an empty scene) and the mask is empty. background: the least automatic threshold.
+  double min_contrast = 16.0;
+  // background: colour distance (Euclidean, 8-bit BGR) above which a pixel is object; 0 picks it
+  // per frame by Otsu's method on the distance image (never below min_contrast).
+  double difference_threshold = 0.0;
+  // chroma: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
+  // the region of interest's outline (which must show backdrop).
+  std::vector<double> chroma_key_bgr;
+  // chroma: a pixel is backdrop when its chroma, projected on the key's, reaches this fraction
+  // of the key's chroma (0.5 cuts anti-aliased edges at half coverage for neutral objects).
+  double chroma_fraction = 0.5;
+  // Region of interest [left, top, right, bottom) in pixels, clipped to the image; empty: the
+  // whole image. Exclude the plate's rim, the table under it and anything fixed beside it.
+  std::vector<int> roi_px;
+  // A polygon further limiting the region of interest: x y pairs in pixels (at least three
+  // points); empty: no polygon. Trace it just above the plate's near rim so the rim and the
+  // table below it are excluded while the plate's top stays in.
+  std::vector<int> roi_polygon_px;
+  // Rectangles excluded from the region of interest, in groups of four [left, top, right,
+  // bottom) (fixtures, clamps, a lamp stand).
+  std::vector<int> exclude_px;
+  int open_px = 1;           // opening radius; 0 disables
+  int close_px = 1;          // closing radius; 0 disables
+  bool keep_largest = true;  // keep only the largest 8-connected component
+  bool fill_holes = true;    // fill holes in the silhouette
+  int max_hole_area_px = 0;  // holes larger than this stay open (a mug's handle); 0: no limit
 };
 
 // Parses [segment] (the keys above, with their ranges); unknown keys are errors naming
@@ -30,15 +64,26 @@ class Segmenter {
 
   // Returns a CV_8UC1 mask of the image's size: 255 on the object, 0 elsewhere.
   // `background` (may be empty) is a frame of the empty scene for methods that use one.
-  // Errors: bad_input for an empty or unsupported image.
+  // Errors: bad_input for an empty or unsupported image, or (method = background) a missing
+  // background frame or one of another size.
   virtual Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const = 0;
+
+  // True when Segment needs a background frame (method = background).
+  virtual bool NeedsBackground() const { return false; }
 };
 
-// Threshold segmentation for a dark backdrop and a brighter object: grey > threshold (Otsu's or
-// the fixed one), opening then closing (elliptical kernels), the largest 8-connected component,
-// holes filled. Otsu on an image whose two classes differ by less than 16 grey levels (an empty
-// scene) gives an all-zero mask. The background frame is not used.
+// The configured segmenter. Thresholds: grey > threshold (dark backdrop) or grey < threshold
+// (light backdrop), the threshold being Otsu's or the fixed one; Otsu on an image whose two
+// classes differ by less than min_contrast grey levels (an empty scene) gives an all-zero mask.
 // Errors: bad_input for an unknown method or an out-of-range value.
 Expected<std::unique_ptr<Segmenter>> CreateSegmenter(const SegmentOptions& options);
+
+// The region of interest as a CV_8UC1 mask of `size` (255 inside): roi_px and roi_polygon_px
+// minus exclude_px.
+cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size);
+
+// The backdrop colour (B, G, R) a chroma segmenter estimates: the per-channel median of the
+// pixels on the outline of the region of interest's bounding rectangle. Contract: CV_8UC3.
+cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi);
 
 }  // namespace revolve::capture

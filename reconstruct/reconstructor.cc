@@ -4,9 +4,13 @@
 #include <chrono>
 
 #include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
 #include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/meridian/meridian.h"
+#include "reconstruct/texture/texture.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -16,14 +20,31 @@ constexpr int kMaxResolution = 1024;
 
 class HullReconstructor final : public Reconstructor {
  public:
-  explicit HullReconstructor(const VoxelGrid& grid) : hull_(grid) {}
+  HullReconstructor(const VoxelGrid& grid, const ReconstructOptions& options)
+      : hull_(grid), options_(options) {}
 
-  Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& /*image*/,
-                           const View& view) override {
+  Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) override {
     const auto start = std::chrono::steady_clock::now();
+    if (!image.empty() && (image.cols != view.width_px || image.rows != view.height_px)) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("frame is {}x{}, the view {}x{}", image.cols, image.rows,
+                                   view.width_px, view.height_px));
+    }
     if (Expected<void> result = hull_.Integrate(mask, view); !result) {
       return result;
     }
+    views_.push_back(view);
+    cv::Mat bgr;  // a copy: a camera may reuse its frame buffers
+    if (image.empty()) {
+      // no colour from this view
+    } else if (image.type() == CV_8UC3) {
+      bgr = image.clone();
+    } else if (image.type() == CV_8UC1) {
+      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+    } else if (image.type() == CV_8UC4) {
+      cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+    }
+    images_.push_back(bgr);
     Logger("reconstruct")
         ->debug("hull: view {} carved in {:.1f} ms", hull_.view_count(),
                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -39,7 +60,11 @@ class HullReconstructor final : public Reconstructor {
                                    "are empty or the carving volume misses the object",
                                    hull_.view_count()));
     }
-    Mesh mesh = hull_.ExtractSurface();
+    HullSurfaceOptions surface;
+    if (options_.flat_bottom) {
+      surface.clip_below_z_mm = 0.0;
+    }
+    Mesh mesh = hull_.ExtractSurface(surface);
     const VoxelGrid& grid = hull_.grid();
     Logger("reconstruct")
         ->info(
@@ -52,22 +77,55 @@ class HullReconstructor final : public Reconstructor {
     if (mesh.faces.empty()) {
       return MakeError(ErrorCode::kInternal, "the visual hull is not empty but has no surface");
     }
+    if (std::any_of(images_.begin(), images_.end(), [](const cv::Mat& m) { return !m.empty(); })) {
+      const auto texture_start = std::chrono::steady_clock::now();
+      TextureOptions texture;
+      texture.atlas = options_.texture;
+      texture.texture_size_px = options_.texture_size_px;
+      Expected<TextureStats> textured = TextureMesh(&mesh, views_, images_, texture);
+      if (!textured) {
+        return std::unexpected(textured.error());
+      }
+      Logger("reconstruct")
+          ->info(
+              "texture: {} views, {} charts, atlas {}x{} at {:.2f} texel/px, {} faces unseen, "
+              "in {:.0f} ms",
+              textured->views_used, textured->charts, mesh.texture.cols, mesh.texture.rows,
+              textured->atlas_scale, textured->unseen_faces,
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
+                                                        texture_start)
+                  .count());
+    }
     return mesh;
   }
 
  private:
   VisualHull hull_;
+  ReconstructOptions options_;
+  std::vector<View> views_;
+  std::vector<cv::Mat> images_;
 };
 
 }  // namespace
 
 Expected<ReconstructOptions> ParseOptions(const config::Section& section) {
   ReconstructOptions options;
-  Expected<std::string> method = section.String("method", options.method, {"hull"});
+  Expected<std::string> method = section.String("method", options.method, {"hull", "meridian"});
   if (!method) {
     return std::unexpected(method.error());
   }
   options.method = *method;
+  Expected<std::int64_t> row_step =
+      section.Integer("meridian_row_step_px", options.meridian_row_step_px, 1, 256);
+  if (!row_step) {
+    return std::unexpected(row_step.error());
+  }
+  options.meridian_row_step_px = static_cast<int>(*row_step);
+  Expected<bool> both_sides = section.Boolean("meridian_both_sides", options.meridian_both_sides);
+  if (!both_sides) {
+    return std::unexpected(both_sides.error());
+  }
+  options.meridian_both_sides = *both_sides;
 
   Expected<std::int64_t> resolution =
       section.Integer("resolution", options.resolution, kMinResolution, kMaxResolution);
@@ -91,21 +149,39 @@ Expected<ReconstructOptions> ParseOptions(const config::Section& section) {
   if (!formats) {
     return std::unexpected(formats.error());
   }
+  constexpr const char* kFormatList = R"("ply", "obj", "stl", "glb", "wrl")";
   if (formats->empty()) {
     return std::unexpected(
-        section.BadValue("formats", "expected at least one of \"ply\", \"wrl\""));
+        section.BadValue("formats", fmt::format("expected at least one of {}", kFormatList)));
   }
   options.formats.clear();
   for (const std::string& format : *formats) {
-    if (format != "ply" && format != "wrl") {
-      return std::unexpected(section.BadValue(
-          "formats", fmt::format("\"{}\" is not one of \"ply\", \"wrl\"", format)));
+    if (!IsModelFormat(format)) {
+      return std::unexpected(
+          section.BadValue("formats", fmt::format("\"{}\" is not one of {}", format, kFormatList)));
     }
     if (std::find(options.formats.begin(), options.formats.end(), format) ==
         options.formats.end()) {
       options.formats.push_back(format);
     }
   }
+
+  Expected<bool> texture = section.Boolean("texture", options.texture);
+  if (!texture) {
+    return std::unexpected(texture.error());
+  }
+  options.texture = *texture;
+  Expected<std::int64_t> texture_size =
+      section.Integer("texture_size_px", options.texture_size_px, 64, 16384);
+  if (!texture_size) {
+    return std::unexpected(texture_size.error());
+  }
+  options.texture_size_px = static_cast<int>(*texture_size);
+  Expected<bool> flat_bottom = section.Boolean("flat_bottom", options.flat_bottom);
+  if (!flat_bottom) {
+    return std::unexpected(flat_bottom.error());
+  }
+  options.flat_bottom = *flat_bottom;
 
   if (Expected<void> unknown = section.CheckNoUnknownKeys(); !unknown) {
     return std::unexpected(unknown.error());
@@ -114,10 +190,20 @@ Expected<ReconstructOptions> ParseOptions(const config::Section& section) {
 }
 
 Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& options) {
+  if (options.method == "meridian") {
+    if (options.meridian_row_step_px < 1 || options.meridian_row_step_px > 256) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("meridian row step {} px is out of range [1, 256]",
+                                   options.meridian_row_step_px));
+    }
+    return std::make_unique<MeridianReconstructor>(
+        MeridianOptions{options.meridian_row_step_px, options.meridian_both_sides});
+  }
   if (options.method != "hull") {
-    return MakeError(
-        ErrorCode::kBadInput,
-        fmt::format("unknown reconstruction method \"{}\" (expected hull)", options.method));
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("unknown reconstruction method \"{}\" (expected hull or "
+                                 "meridian)",
+                                 options.method));
   }
   if (options.resolution < kMinResolution || options.resolution > kMaxResolution) {
     return MakeError(ErrorCode::kBadInput,
@@ -129,7 +215,7 @@ Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& option
   if (!grid) {
     return std::unexpected(grid.error());
   }
-  return std::make_unique<HullReconstructor>(*grid);
+  return std::make_unique<HullReconstructor>(*grid, options);
 }
 
 }  // namespace revolve::reconstruct

@@ -17,20 +17,35 @@ namespace revolve::reconstruct {
 
 // [reconstruct]
 struct ReconstructOptions {
-  std::string method = "hull";  // hull
+  std::string method = "hull";  // hull | meridian
   int resolution = 192;         // voxels along the longest side of the volume, 16..1024
   // Carving volume in the object frame (mm). ParseOptions derives it from volume_radius_mm (r)
   // and volume_height_mm (h): the box [-r, r] x [-r, r] x [0, h] around a cylinder standing on
   // the plate, so nothing below the plate is ever part of the model.
   Eigen::Vector3d bbox_min_mm{-60.0, -60.0, 0.0};
   Eigen::Vector3d bbox_max_mm{60.0, 60.0, 120.0};
-  std::vector<std::string> formats = {"ply", "wrl"};  // each one of ply | wrl
+  // each one of ply | obj | stl | glb | wrl
+  std::vector<std::string> formats = {"ply", "obj", "stl", "glb", "wrl"};
+  // hull: colour from the frames (reconstruct/texture/texture.h): vertex colours always, and a
+  // texture atlas (for OBJ and glTF) when `texture`; texture_size_px bounds the atlas's side
+  // (64..16384).
+  bool texture = true;
+  int texture_size_px = 4096;
+  // hull: cut the model at the table plane (z = 0) and close it there with a flat face, so it
+  // stands and prints; false keeps whatever part of the carving box lies below the plate.
+  bool flat_bottom = true;
+  // meridian: feature points on every k-th image row (the thesis's h_RANGE), 1..256.
+  int meridian_row_step_px = 9;
+  // meridian: also take the rightmost pixel as the meridian at theta + 180 deg (thesis 6.2).
+  bool meridian_both_sides = false;
 };
 
-// Parses [reconstruct]: method ("hull"), resolution (16..1024), volume_radius_mm and
-// volume_height_mm (1..10000 mm each), formats (a non-empty array of "ply" | "wrl"; duplicates
-// are dropped). Absent keys keep the defaults above. Errors: bad_input naming file:line:column
-// and the key, for a wrong type, a value out of range or an unknown key.
+// Parses [reconstruct]: method ("hull" | "meridian"), meridian_row_step_px (1..256),
+// meridian_both_sides (bool), resolution (16..1024), volume_radius_mm and
+// volume_height_mm (1..10000 mm each), formats (a non-empty array of "ply" | "obj" | "stl" |
+// "glb" | "wrl"; duplicates are dropped), texture (bool), texture_size_px (64..16384),
+// flat_bottom (bool). Absent keys keep the defaults above. Errors: bad_input naming
+// file:line:column and the key, for a wrong type, a value out of range or an unknown key.
 Expected<ReconstructOptions> ParseOptions(const config::Section& section);
 
 class Reconstructor {
@@ -39,7 +54,8 @@ class Reconstructor {
 
   // Adds one view: `mask` is CV_8UC1 (non-zero = object) of the view's image size, `image` the
   // frame it came from (CV_8UC3 BGR, may be empty; used for colour). Errors: bad_input when the
-  // mask size does not match the view.
+  // mask size (or a non-empty frame's size) does not match the view. The hull takes frames of
+  // 1, 3 (BGR) or 4 (BGRA) 8-bit channels; a frame of another type is not used for colour.
   virtual Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) = 0;
 
   // Extracts the surface of everything integrated so far: a watertight, 2-manifold,
@@ -49,7 +65,10 @@ class Reconstructor {
 };
 
 // The reconstructor for `options.method` ("hull": incremental visual hull, surface by marching
-// cubes with sub-voxel vertices; reconstruct/hull/visual_hull.h). `image` is not used yet.
+// cubes with sub-voxel vertices; reconstruct/hull/visual_hull.h; "meridian": the thesis's
+// meridian feature points and strips, reconstruct/meridian/meridian.h, which ignores the volume
+// and resolution). The hull keeps a copy of each non-empty frame (1.3 MB at 768x576) and colours
+// the mesh from them in Finish (vertex colours, and a texture atlas when options.texture).
 // Errors: bad_input for an unknown method, a resolution outside 16..1024 or an empty volume.
 Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& options);
 

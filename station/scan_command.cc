@@ -61,7 +61,12 @@ void PrintSummary(std::ostream& out, const ScanFolder& folder, const StationConf
 
 int RunScanCommand(const ScanCommandOptions& options, std::stop_token stop, std::ostream& out,
                    std::ostream& err) {
-  auto config = LoadStationConfig(options.config);
+  auto base = LoadStationConfig(options.config);
+  if (!base) {
+    fmt::print(err, "revolve scan: {}\n", base.error().message);
+    return kExitConfig;
+  }
+  auto config = ApplyRecipe(*base, options.recipe.value_or(""));
   if (!config) {
     fmt::print(err, "revolve scan: {}\n", config.error().message);
     return kExitConfig;
@@ -78,9 +83,10 @@ int RunScanCommand(const ScanCommandOptions& options, std::stop_token stop, std:
     fmt::print(err, "revolve scan: {}\n", folder.error().message);
     return kExitFailed;
   }
-  fmt::print(out, "revolve scan: {} stops of {} deg, {} / {} -> {}\n", config->scan.stops,
-             config->scan.step_deg, devices->turntable->Describe(), devices->camera->Describe(),
-             dir.string());
+  folder->SetByteLimit(config->station.simulate.disk_limit_bytes);
+  fmt::print(out, "revolve scan: {} stops of {} deg (recipe {}), {} / {} -> {}\n",
+             config->scan.stops, config->scan.step_deg, config->recipe,
+             devices->turntable->Describe(), devices->camera->Describe(), dir.string());
   ScanSession session(*config, *devices, *folder);
   session.OnStop([&out](const StopProgress& p) {
     fmt::print(out,
@@ -89,6 +95,9 @@ int RunScanCommand(const ScanCommandOptions& options, std::stop_token stop, std:
                p.index + 1, p.stops, p.commanded_deg, p.readback_deg, p.mask_area_px, p.stop_ms,
                p.eta_s);
     out.flush();
+  });
+  session.OnEvent([&err](const ScanEvent& e) {
+    if (!e.note.empty() && !IsTerminal(e.state)) fmt::print(err, "revolve scan: {}\n", e.note);
   });
   auto result = session.Run(stop);
   if (!result) {

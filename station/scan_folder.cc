@@ -1,7 +1,11 @@
 #include "station/scan_folder.h"
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <ctime>
+#include <fstream>
+#include <sstream>
 #include <vector>
 
 #include <fmt/format.h>
@@ -29,24 +33,70 @@ Expected<ScanFolder> ScanFolder::Create(const std::filesystem::path& dir) {
   return ScanFolder(dir);
 }
 
+Expected<ScanFolder> ScanFolder::Open(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(dir / "manifest.json", ec)) {
+    return MakeError(ErrorCode::kNotFound,
+                     fmt::format("{}: not a scan folder (no manifest.json)", dir.string()));
+  }
+  for (const char* sub : {"frames", "masks", "model"}) {
+    std::filesystem::create_directories(dir / sub, ec);
+    if (ec) {
+      return MakeError(ErrorCode::kIo,
+                       fmt::format("{}: cannot create: {}", (dir / sub).string(), ec.message()));
+    }
+  }
+  return ScanFolder(dir);
+}
+
+Expected<void> ScanFolder::Write(const std::string& relative, std::span<const char> bytes) const {
+  if (limit_bytes_ > 0) {
+    const auto size = static_cast<std::int64_t>(bytes.size());
+    if (written_bytes_->load() + size > limit_bytes_) {
+      return MakeError(ErrorCode::kIo,
+                       fmt::format("{}: write failed: {} (simulated: station.simulate."
+                                   "disk_limit_bytes)",
+                                   (dir_ / relative).string(), std::strerror(ENOSPC)));
+    }
+    written_bytes_->fetch_add(size);
+  }
+  return WriteFileAtomically(dir_ / relative, bytes);
+}
+
 Expected<void> ScanFolder::WriteImage(const std::string& relative, const cv::Mat& image) const {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) {
     return MakeError(ErrorCode::kInternal,
                      fmt::format("{}: cannot encode the image as PNG", (dir_ / relative).string()));
   }
-  return WriteFileAtomically(
-      dir_ / relative,
-      std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
+  return Write(relative,
+               std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 Expected<void> ScanFolder::WriteText(const std::string& relative, std::string_view text) const {
-  return WriteFileAtomically(dir_ / relative, text);
+  return Write(relative, std::span<const char>(text.data(), text.size()));
 }
 
 Expected<void> ScanFolder::WriteJson(const std::string& relative,
                                      const nlohmann::json& json) const {
   return WriteText(relative, json.dump(2) + "\n");
+}
+
+Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir) {
+  const std::filesystem::path path = dir / "manifest.json";
+  std::ifstream in(path);
+  if (!in) {
+    return MakeError(ErrorCode::kNotFound,
+                     fmt::format("{}: cannot read (not a scan folder?)", path.string()));
+  }
+  std::stringstream text;
+  text << in.rdbuf();
+  nlohmann::json manifest = nlohmann::json::parse(text.str(), nullptr, false);
+  if (manifest.is_discarded() || !manifest.is_object()) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: not a JSON object (damaged manifest)", path.string()));
+  }
+  return manifest;
 }
 
 std::string StopFileName(int index) { return fmt::format("stop_{:03d}.png", index); }

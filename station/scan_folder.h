@@ -2,7 +2,11 @@
 // fsynced and renamed, so the folder never holds a half-written file.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <span>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -18,6 +22,14 @@ class ScanFolder {
   // is not empty, so an earlier scan is never overwritten.
   static Expected<ScanFolder> Create(const std::filesystem::path& dir);
 
+  // An existing scan folder (to resume or rebuild it): `dir` must hold a manifest.json.
+  // Errors: not_found.
+  static Expected<ScanFolder> Open(const std::filesystem::path& dir);
+
+  // Simulates a disk that fills after `bytes` more bytes (0: unlimited): a write that would pass
+  // it fails with io "No space left on device" and writes nothing. For fault injection.
+  void SetByteLimit(std::int64_t bytes) { limit_bytes_ = bytes; }
+
   const std::filesystem::path& dir() const { return dir_; }
   std::filesystem::path model_dir() const { return dir_ / "model"; }
 
@@ -28,8 +40,16 @@ class ScanFolder {
 
  private:
   explicit ScanFolder(std::filesystem::path dir) : dir_(std::move(dir)) {}
+  Expected<void> Write(const std::string& relative, std::span<const char> bytes) const;
+
   std::filesystem::path dir_;
+  std::int64_t limit_bytes_ = 0;
+  std::shared_ptr<std::atomic<std::int64_t>> written_bytes_ =
+      std::make_shared<std::atomic<std::int64_t>>(0);
 };
+
+// Reads `dir`/manifest.json. Errors: not_found, bad_input (not JSON; names the file).
+Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir);
 
 // "stop_007.png"
 std::string StopFileName(int index);

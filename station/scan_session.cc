@@ -1,12 +1,15 @@
 #include "station/scan_session.h"
 
+#include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <ctime>
+#include <map>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
 
-#include "base/log.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
@@ -25,17 +28,19 @@ Clock::time_point DeadlineIn(double seconds) {
          std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
 }
 
-// UTC, ISO 8601 with milliseconds: "2026-11-21T23:01:05.123Z".
-std::string IsoTimeNow() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
-  const auto ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()) % 1000;
-  std::tm utc{};
-  gmtime_r(&seconds, &utc);
-  char buf[32];
-  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &utc);
-  return fmt::format("{}.{:03d}Z", buf, static_cast<int>(ms.count()));
+// Sleeps `ms`, returning early when a stop is requested.
+void SleepFor(std::stop_token stop, double ms) {
+  if (ms <= 0.0) return;
+  std::mutex mutex;
+  std::condition_variable_any wake;
+  std::unique_lock lock(mutex);
+  (void)wake.wait_for(lock, stop, std::chrono::duration<double, std::milli>(ms),
+                      [] { return false; });
+}
+
+bool MayPass(ErrorCode code) {
+  return code == ErrorCode::kTimeout || code == ErrorCode::kNoDevice ||
+         code == ErrorCode::kLinkDown || code == ErrorCode::kIo || code == ErrorCode::kProtocol;
 }
 
 nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
@@ -69,21 +74,25 @@ nlohmann::json AccuracyJson(const reconstruct::Mesh& mesh, const reconstruct::Me
   return j;
 }
 
+void SortStopsByIndex(nlohmann::json& stops) {
+  std::stable_sort(stops.begin(), stops.end(),
+                   [](const nlohmann::json& a, const nlohmann::json& b) {
+                     return a.value("index", 0) < b.value("index", 0);
+                   });
+}
+
 }  // namespace
 
-Expected<Devices> OpenDevices(const StationConfig& config) {
-  Devices devices;
-  devices.plate = std::make_shared<SimulatedPlate>();
-  auto turntable = turntable::Create(config.turntable, devices.plate);
-  if (!turntable) return std::unexpected(turntable.error());
-  devices.turntable = std::move(*turntable);
-  auto camera = capture::Create(config.camera, devices.plate);
-  if (!camera) return std::unexpected(camera.error());
-  devices.camera = std::move(*camera);
-  auto segmenter = capture::CreateSegmenter(config.segment);
-  if (!segmenter) return std::unexpected(segmenter.error());
-  devices.segmenter = std::move(*segmenter);
-  return devices;
+std::string IsoTimeNow() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t seconds = std::chrono::system_clock::to_time_t(now);
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()) % 1000;
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%S", &utc);
+  return fmt::format("{}.{:03d}Z", buf, static_cast<int>(ms.count()));
 }
 
 nlohmann::json StageTimes::ToJson() const {
@@ -93,49 +102,206 @@ nlohmann::json StageTimes::ToJson() const {
           {"total_ms", total_ms}};
 }
 
-ScanSession::ScanSession(const StationConfig& config, Devices& devices, const ScanFolder& folder)
-    : config_(config), devices_(devices), folder_(folder) {}
+ScanSession::ScanSession(const StationConfig& config, Devices& devices, const ScanFolder& folder,
+                         std::string scan_id)
+    : config_(config),
+      devices_(devices),
+      folder_(folder),
+      scan_id_(scan_id.empty() ? folder.dir().filename().string() : std::move(scan_id)) {}
+
+void ScanSession::SetAbortReason(std::string reason) {
+  std::lock_guard lock(abort_mutex_);
+  abort_reason_ = std::move(reason);
+}
+
+Error ScanSession::AbortedError(int stops_done) const {
+  std::lock_guard lock(abort_mutex_);
+  return Error{ErrorCode::kAborted,
+               fmt::format("aborted{} after {} of {} stops",
+                           abort_reason_.empty() ? "" : " (" + abort_reason_ + ")", stops_done,
+                           config_.scan.stops)};
+}
 
 Expected<void> ScanSession::SaveManifest() { return folder_.WriteJson("manifest.json", manifest_); }
 
+void ScanSession::Emit(ScanEvent event) {
+  event.time = IsoTimeNow();
+  if (on_event_) on_event_(event);
+}
+
+Expected<void> ScanSession::Enter(ScanState state, int stop, double angle_deg) {
+  Expected<ScanEvent> event = machine_->Enter(state, Clock::now(), stop, angle_deg);
+  if (!event) return std::unexpected(event.error());
+  Emit(std::move(*event));
+  return {};
+}
+
 Expected<ScanResult> ScanSession::Run(std::stop_token stop) {
   manifest_ = {{"version", 1},
+               {"scan_id", scan_id_},
+               {"recipe", config_.recipe},
                {"state", "running"},
                {"started", IsoTimeNow()},
                {"config", config_.origin},
                {"stops_planned", config_.scan.stops},
                {"step_deg", config_.scan.step_deg},
+               {"stops_done", 0},
                {"turntable", devices_.turntable->Describe()},
                {"camera", devices_.camera->Describe()},
                {"stops", nlohmann::json::array()}};
-  if (auto w = folder_.WriteText("scan.toml", config_.text); !w) return std::unexpected(w.error());
-  if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
+  return Execute(stop, {});
+}
 
-  std::stop_callback stop_motor(stop, [this] { devices_.turntable->Stop(); });
-  auto result = RunStops(stop);
+Expected<ScanResult> ScanSession::Resume(std::stop_token stop) {
+  Expected<nlohmann::json> manifest = ReadManifest(folder_.dir());
+  if (!manifest) return std::unexpected(manifest.error());
+  const int planned = manifest->value("stops_planned", -1);
+  const double step_deg = manifest->value("step_deg", -1.0);
+  if (planned != config_.scan.stops || std::abs(step_deg - config_.scan.step_deg) > 1e-9) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: planned {} stops of {} deg, but the configuration says {} "
+                                 "of {} deg; resume it with its own scan.toml",
+                                 folder_.dir().string(), planned, step_deg, config_.scan.stops,
+                                 config_.scan.step_deg));
+  }
+  if (manifest->value("state", std::string()) == "complete") {
+    return MakeError(
+        ErrorCode::kBadInput,
+        fmt::format("{}: the scan is complete; nothing to resume", folder_.dir().string()));
+  }
+  std::vector<std::string> skipped;
+  Expected<std::vector<SavedStop>> saved = ReadSavedStops(folder_.dir(), *manifest, true, &skipped);
+  if (!saved) return std::unexpected(saved.error());
+
+  manifest_ = std::move(*manifest);
+  manifest_["state"] = "running";
+  manifest_.erase("error");
+  manifest_.erase("abort");
+  manifest_.erase("finished");
+  manifest_.erase("model");
+  manifest_["stops"] = nlohmann::json::array();
+  for (const SavedStop& s : *saved) manifest_["stops"].push_back(s.entry);
+  manifest_["stops_done"] = saved->size();
+  if (!manifest_.contains("resumed") || !manifest_["resumed"].is_array()) {
+    manifest_["resumed"] = nlohmann::json::array();
+  }
+  manifest_["resumed"].push_back(
+      {{"time", IsoTimeNow()}, {"stops_loaded", saved->size()}, {"skipped", skipped}});
+  return Execute(stop, std::move(*saved));
+}
+
+Expected<ScanResult> ScanSession::Execute(std::stop_token stop, std::vector<SavedStop> saved) {
+  const int already = static_cast<int>(saved.size());
+  const bool resumed = manifest_.contains("resumed");
+  machine_ =
+      std::make_unique<ScanStateMachine>(scan_id_, config_.scan.stops, already, Clock::now());
+  if (auto entered = Enter(ScanState::kHoming); !entered) return std::unexpected(entered.error());
+  if (resumed) {
+    Emit(machine_->Note(
+        fmt::format("resuming: {} of {} stops are saved; re-homing", already, config_.scan.stops),
+        Clock::now()));
+  }
+
+  Expected<ScanResult> result = [&]() -> Expected<ScanResult> {
+    std::error_code ec;
+    if (!resumed || !std::filesystem::exists(folder_.dir() / "scan.toml", ec)) {
+      if (auto w = folder_.WriteText("scan.toml", config_.text); !w) {
+        return std::unexpected(w.error());
+      }
+    }
+    if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
+    // Runs on the thread that requests the stop (a signal handler thread, the daemon's loop), so
+    // the motor stops at once, whatever the scanning thread is doing.
+    std::stop_callback stop_motor(stop, [this] {
+      const auto t = Clock::now();
+      devices_.turntable->Stop();
+      const double ms = MsSince(t);
+      std::lock_guard lock(abort_mutex_);
+      motor_stop_ms_ = ms;
+      abort_requested_at_ = IsoTimeNow();
+    });
+    return RunStops(stop, std::move(saved));
+  }();
   devices_.turntable->Stop();
   devices_.camera->Stop();
-  (void)devices_.turntable->Disable();
+  if (config_.turntable.disable_at_end) (void)devices_.turntable->Disable();
 
+  if (!result && stop.stop_requested()) {
+    result = std::unexpected(AbortedError(machine_->stops_done()));
+  }
   manifest_["finished"] = IsoTimeNow();
+  std::optional<int> alarm_code;
+  std::string alarm_text;
   if (result) {
     manifest_["state"] = "complete";
   } else {
-    manifest_["state"] = result.error().code == ErrorCode::kAborted ? "aborted" : "failed";
-    manifest_["error"] = {{"code", ToString(result.error().code)},
-                          {"message", result.error().message}};
+    const Error& error = result.error();
+    const bool aborted = error.code == ErrorCode::kAborted;
+    manifest_["state"] = aborted ? "aborted" : "failed";
+    manifest_["error"] = {{"code", ToString(error.code)}, {"message", error.message}};
+    if (!aborted) {
+      if (auto state = devices_.turntable->State(); state && state->alarm_code) {
+        alarm_code = state->alarm_code;
+        alarm_text = state->alarm_text;
+        manifest_["error"]["alarm_code"] = *alarm_code;
+        manifest_["error"]["alarm_text"] = alarm_text;
+      }
+    } else {
+      std::lock_guard lock(abort_mutex_);
+      manifest_["abort"] = {{"reason", abort_reason_.empty() ? "stop requested" : abort_reason_},
+                            {"requested", abort_requested_at_}};
+      if (motor_stop_ms_) manifest_["abort"]["motor_stop_ms"] = *motor_stop_ms_;
+    }
   }
-  if (auto w = SaveManifest(); !w && result) return std::unexpected(w.error());
+  if (auto w = SaveManifest(); !w) {
+    if (result) result = std::unexpected(w.error());
+  }
+  if (result) {
+    if (auto done = Enter(ScanState::kDone); !done) result = std::unexpected(done.error());
+  }
+  if (!result) {
+    if (auto failed = machine_->Fail(result.error(), Clock::now(), alarm_code, alarm_text)) {
+      Emit(std::move(*failed));
+    }
+  }
   return result;
 }
 
-Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
-  auto log = Logger("station");
+Expected<capture::Frame> ScanSession::CaptureWithRetries(std::stop_token stop, int stop_index,
+                                                         capture::Clock::time_point settled) {
+  const int retries = config_.station.camera_retries;
+  const auto timeout = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(config_.scan.capture_timeout_s));
+  std::optional<Error> start_error;
+  for (int attempt = 0;; ++attempt) {
+    Expected<capture::Frame> frame = start_error
+                                         ? Expected<capture::Frame>(std::unexpected(*start_error))
+                                         : devices_.camera->Capture(settled, timeout);
+    if (frame) return frame;
+    const Error& error = frame.error();
+    if (!MayPass(error.code) || attempt >= retries || stop.stop_requested()) {
+      return std::unexpected(WithContext(
+          error, attempt == 0 ? fmt::format("capturing stop {}", stop_index)
+                              : fmt::format("capturing stop {} (gave up after {} re-tries)",
+                                            stop_index, attempt)));
+    }
+    Emit(machine_->Note(fmt::format("camera: {}; re-try {} of {}, reopening the camera",
+                                    error.message, attempt + 1, retries),
+                        Clock::now()));
+    devices_.camera->Stop();
+    SleepFor(stop, config_.station.camera_retry_delay_ms);
+    start_error.reset();
+    if (auto started = devices_.camera->Start(); !started) start_error = started.error();
+    settled = Clock::now();
+  }
+}
+
+Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<SavedStop> saved) {
   const ScanOptions& scan = config_.scan;
   const auto scan_start = Clock::now();
+  ScanResult result;
 
-  const std::optional<revolve::Rig> geometry = devices_.camera->KnownRig();
-  if (!geometry) {
+  if (!devices_.camera->KnownView(0.0)) {
     return MakeError(ErrorCode::kUnsupported,
                      fmt::format("{}: the camera \"{}\" has no known geometry and this build has "
                                  "no calibration yet; use the synthetic camera",
@@ -143,25 +309,63 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
   }
   auto reconstructor = reconstruct::Create(config_.reconstruct);
   if (!reconstructor) return std::unexpected(reconstructor.error());
+  auto view_at = [this](double angle_deg, const cv::Mat& mask) {
+    View view = *devices_.camera->KnownView(angle_deg);
+    view.width_px = mask.cols;
+    view.height_px = mask.rows;
+    return view;
+  };
+
+  // A resumed scan: the saved stops first.
+  std::map<int, cv::Mat> thumbnails;
+  std::set<int> done;
+  for (SavedStop& s : saved) {
+    if (s.index < 0 || s.index >= scan.stops) continue;
+    if (auto integrated =
+            (*reconstructor)->Integrate(s.mask, s.frame, view_at(s.readback_deg, s.mask));
+        !integrated) {
+      return std::unexpected(
+          WithContext(integrated.error(), fmt::format("re-integrating saved stop {}", s.index)));
+    }
+    thumbnails[s.index] = ContactSheetTile(s.frame, s.mask);
+    done.insert(s.index);
+    s.frame.release();
+    s.mask.release();
+  }
+  result.stops_done = static_cast<int>(done.size());
 
   auto t = Clock::now();
   if (auto homed = devices_.turntable->Home(DeadlineIn(scan.move_timeout_s)); !homed) {
     return std::unexpected(WithContext(homed.error(), "homing the turntable"));
   }
   times_.home_ms = MsSince(t);
+  if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
   auto format = devices_.camera->Start();
   if (!format) return std::unexpected(WithContext(format.error(), "starting the camera"));
 
-  std::vector<cv::Mat> thumbnails;
-  ScanResult result;
-  for (int k = 0; k < scan.stops; ++k) {
-    if (stop.stop_requested()) {
-      return MakeError(ErrorCode::kAborted,
-                       fmt::format("aborted after {} of {} stops", k, scan.stops));
+  cv::Mat background;
+  if (devices_.segmenter->NeedsBackground()) {
+    auto frame = devices_.camera->CaptureBackground(
+        Clock::now(), std::chrono::duration_cast<Clock::duration>(
+                          std::chrono::duration<double>(scan.capture_timeout_s)));
+    if (!frame) {
+      return std::unexpected(WithContext(frame.error(), "capturing the background frame"));
     }
+    background = frame->image;
+    if (auto w = folder_.WriteImage("frames/background.png", background); !w) {
+      return std::unexpected(w.error());
+    }
+  }
+
+  const auto stops_start = Clock::now();
+  int captured = 0;
+  for (int k = 0; k < scan.stops; ++k) {
+    if (done.contains(k)) continue;
+    if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
     const auto stop_start = Clock::now();
     const double commanded_deg = k * scan.step_deg;
 
+    if (auto e = Enter(ScanState::kMoving, k, commanded_deg); !e) return std::unexpected(e.error());
     t = Clock::now();
     if (auto moved = devices_.turntable->MoveTo(commanded_deg, DeadlineIn(scan.move_timeout_s));
         !moved) {
@@ -172,35 +376,41 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
     if (!state) return std::unexpected(WithContext(state.error(), "reading the turntable"));
     times_.move_ms += MsSince(t);
 
+    if (auto e = Enter(ScanState::kSettling, k, commanded_deg); !e) {
+      return std::unexpected(e.error());
+    }
     t = Clock::now();
-    std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(scan.settle_ms));
+    SleepFor(stop, scan.settle_ms);
+    if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
     const auto settled = Clock::now();
     times_.settle_ms += MsSince(t);
 
-    t = Clock::now();
-    auto frame = devices_.camera->Capture(
-        settled, std::chrono::duration_cast<Clock::duration>(
-                     std::chrono::duration<double>(scan.capture_timeout_s)));
-    if (!frame) {
-      return std::unexpected(WithContext(frame.error(), fmt::format("capturing stop {}", k)));
+    if (auto e = Enter(ScanState::kCapturing, k, commanded_deg); !e) {
+      return std::unexpected(e.error());
     }
+    t = Clock::now();
+    auto frame = CaptureWithRetries(stop, k, settled);
+    if (!frame) return std::unexpected(frame.error());
     times_.capture_ms += MsSince(t);
 
     t = Clock::now();
-    auto mask = devices_.segmenter->Segment(frame->image, cv::Mat());
+    auto mask = devices_.segmenter->Segment(frame->image, background);
     if (!mask) {
       return std::unexpected(WithContext(mask.error(), fmt::format("segmenting stop {}", k)));
     }
     times_.segment_ms += MsSince(t);
     const int mask_area_px = cv::countNonZero(*mask);
-    if (mask_area_px == 0) log->warn("stop {}: the silhouette is empty", k);
+    if (mask_area_px == 0) {
+      Emit(machine_->Note(fmt::format("stop {}: the silhouette is empty", k), Clock::now()));
+    }
 
+    if (auto e = Enter(ScanState::kIntegrating, k, commanded_deg); !e) {
+      return std::unexpected(e.error());
+    }
     t = Clock::now();
-    View view;
-    view.pixel_from_object = geometry->PixelFromObject(state->angle_deg);
-    view.width_px = frame->image.cols;
-    view.height_px = frame->image.rows;
-    if (auto integrated = (*reconstructor)->Integrate(*mask, frame->image, view); !integrated) {
+    if (auto integrated =
+            (*reconstructor)->Integrate(*mask, frame->image, view_at(state->angle_deg, *mask));
+        !integrated) {
       return std::unexpected(
           WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
     }
@@ -212,19 +422,25 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
       return std::unexpected(w.error());
     }
     if (auto w = folder_.WriteImage("masks/" + name, *mask); !w) return std::unexpected(w.error());
-    thumbnails.push_back(ContactSheetTile(frame->image, *mask));
-    manifest_["stops"].push_back({{"index", k},
-                                  {"commanded_deg", commanded_deg},
-                                  {"readback_deg", state->angle_deg},
-                                  {"captured", IsoTimeNow()},
-                                  {"frame", "frames/" + name},
-                                  {"mask", "masks/" + name},
-                                  {"mask_area_px", mask_area_px}});
-    manifest_["stops_done"] = k + 1;
+    thumbnails[k] = ContactSheetTile(frame->image, *mask);
+    nlohmann::json entry = {{"index", k},
+                            {"commanded_deg", commanded_deg},
+                            {"readback_deg", state->angle_deg},
+                            {"captured", IsoTimeNow()},
+                            {"frame", "frames/" + name},
+                            {"mask", "masks/" + name},
+                            {"mask_area_px", mask_area_px}};
+    if (frame->exposure_us > 0.0) entry["exposure_us"] = frame->exposure_us;
+    manifest_["stops"].push_back(std::move(entry));
+    SortStopsByIndex(manifest_["stops"]);
+    manifest_["stops_done"] = result.stops_done + 1;
     if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
     times_.save_ms += MsSince(t);
+    machine_->StopSaved();
+    done.insert(k);
+    ++result.stops_done;
+    ++captured;
 
-    result.stops_done = k + 1;
     if (on_stop_) {
       StopProgress p;
       p.index = k;
@@ -233,17 +449,21 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
       p.readback_deg = state->angle_deg;
       p.mask_area_px = mask_area_px;
       p.stop_ms = MsSince(stop_start);
-      const double per_stop_ms = MsSince(scan_start) / (k + 1);
-      p.eta_s = per_stop_ms * (scan.stops - k - 1) / 1000.0;
+      const double per_stop_ms = MsSince(stops_start) / captured;
+      p.eta_s = per_stop_ms * (scan.stops - result.stops_done) / 1000.0;
       on_stop_(p);
     }
   }
+  if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
 
+  if (auto e = Enter(ScanState::kMeshing); !e) return std::unexpected(e.error());
   t = Clock::now();
   auto mesh = (*reconstructor)->Finish();
   if (!mesh) return std::unexpected(WithContext(mesh.error(), "meshing"));
   times_.mesh_ms = MsSince(t);
+  if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
 
+  if (auto e = Enter(ScanState::kWriting); !e) return std::unexpected(e.error());
   t = Clock::now();
   auto files =
       reconstruct::WriteModel(*mesh, folder_.model_dir(), "model", config_.reconstruct.formats);
@@ -251,7 +471,9 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
   for (const auto& f : *files) {
     result.model_files.push_back(std::filesystem::relative(f, folder_.dir()).string());
   }
-  if (auto w = folder_.WriteImage("contact_sheet.png", AssembleContactSheet(thumbnails)); !w) {
+  std::vector<cv::Mat> tiles;
+  for (auto& [index, tile] : thumbnails) tiles.push_back(tile);
+  if (auto w = folder_.WriteImage("contact_sheet.png", AssembleContactSheet(tiles)); !w) {
     return std::unexpected(w.error());
   }
   times_.write_ms = MsSince(t);
@@ -262,6 +484,8 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop) {
   result.triangles = static_cast<std::size_t>(stats.triangle_count);
   result.times = times_;
   nlohmann::json& report = result.report;
+  report["scan_id"] = scan_id_;
+  report["recipe"] = config_.recipe;
   report["stops_done"] = result.stops_done;
   report["units"] = "mm";
   report["scale"] = "metric (simulated rig geometry)";

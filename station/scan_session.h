@@ -1,37 +1,29 @@
-// One scan: home, then for each stop move, settle, capture, segment, integrate and save; then
-// mesh, write the model and the report. The scan folder's manifest is rewritten after every
-// stop, so an interrupted scan says how far it got.
+// One scan as a state machine (station/scan_state.h): home, then for each stop move, settle,
+// capture (and segment), integrate (and save); then mesh, write the model and the report. Each
+// transition is reported as a ScanEvent. The scan folder's manifest is rewritten after every
+// stop, so an interrupted scan says how far it got, and Resume() finishes it.
 #pragma once
 
+#include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <stop_token>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 
 #include "base/error.h"
-#include "base/sim_plate.h"
-#include "capture/camera.h"
-#include "capture/segmenter.h"
-#include "reconstruct/reconstructor.h"
+#include "station/devices.h"
+#include "station/saved_stops.h"
 #include "station/scan_folder.h"
+#include "station/scan_state.h"
 #include "station/station_config.h"
-#include "turntable/turntable.h"
 
 namespace revolve::station {
-
-// The devices of a rig, owned. For the simulated rig the turntable and the camera share `plate`.
-struct Devices {
-  std::shared_ptr<SimulatedPlate> plate;
-  std::unique_ptr<turntable::Turntable> turntable;
-  std::unique_ptr<capture::Camera> camera;
-  std::unique_ptr<capture::Segmenter> segmenter;
-};
-
-// Creates the configured devices (nothing moves yet).
-Expected<Devices> OpenDevices(const StationConfig& config);
 
 // Wall-clock milliseconds spent in each stage, summed over the stops.
 struct StageTimes {
@@ -48,7 +40,7 @@ struct StopProgress {
   double readback_deg = 0;
   int mask_area_px = 0;
   double stop_ms = 0;  // wall time of this stop
-  double eta_s = 0;    // estimated time until the model is written
+  double eta_s = 0;    // estimated time until the last stop is saved
 };
 
 struct ScanResult {
@@ -62,26 +54,61 @@ struct ScanResult {
 
 class ScanSession {
  public:
-  // Borrows everything; all must outlive the session.
-  ScanSession(const StationConfig& config, Devices& devices, const ScanFolder& folder);
+  // Borrows everything; all must outlive the session. `scan_id` names the scan in events
+  // (default: the folder's name).
+  ScanSession(const StationConfig& config, Devices& devices, const ScanFolder& folder,
+              std::string scan_id = {});
 
+  // Called on the scanning thread after each stop is saved.
   void OnStop(std::function<void(const StopProgress&)> callback) { on_stop_ = std::move(callback); }
+  // Called on the scanning thread for every event (transitions and notes), in order. The last
+  // event of Run()/Resume() is terminal (done, failed or aborted) and comes after the manifest
+  // says so.
+  void OnEvent(std::function<void(const ScanEvent&)> callback) { on_event_ = std::move(callback); }
 
-  // Runs the scan. A stop request (signal, abort) stops the motor and returns kAborted. On any
-  // error the motor is stopped, the manifest says "failed" or "aborted" with the reason, and
-  // the frames and masks saved so far stay.
+  // Why the next stop request comes ("SIGTERM", "abort requested by a client"): recorded in the
+  // manifest and the aborted event. Thread-safe; call before requesting the stop.
+  void SetAbortReason(std::string reason);
+
+  // Runs the scan. A stop request stops the motor at once (from the requesting thread) and
+  // returns aborted. On any error the motor is stopped, the manifest says "failed" or "aborted"
+  // with the reason (and the drive's alarm), and the frames and masks saved so far stay. Capture
+  // errors that may pass (timeout, no_device, link_down, io) are re-tried
+  // [station] camera_retries times, reopening the camera in between.
   Expected<ScanResult> Run(std::stop_token stop);
 
+  // Finishes an interrupted scan in `folder` (opened with ScanFolder::Open): re-integrates the
+  // stops its manifest lists, re-homes, captures the missing stops, then meshes and writes as
+  // Run() does. Errors: bad_input when the folder's plan (stops, step) differs from `config`'s.
+  Expected<ScanResult> Resume(std::stop_token stop);
+
  private:
-  Expected<ScanResult> RunStops(std::stop_token stop);
+  Expected<ScanResult> Execute(std::stop_token stop, std::vector<SavedStop> saved);
+  Expected<ScanResult> RunStops(std::stop_token stop, std::vector<SavedStop> saved);
+  Expected<capture::Frame> CaptureWithRetries(std::stop_token stop, int stop_index,
+                                              capture::Clock::time_point settled);
   Expected<void> SaveManifest();
+  Expected<void> Enter(ScanState state, int stop = -1, double angle_deg = 0.0);
+  void Emit(ScanEvent event);
+  Error AbortedError(int stops_done) const;
 
   const StationConfig& config_;
   Devices& devices_;
   const ScanFolder& folder_;
+  std::string scan_id_;
   std::function<void(const StopProgress&)> on_stop_;
+  std::function<void(const ScanEvent&)> on_event_;
   nlohmann::json manifest_;
   StageTimes times_;
+  std::unique_ptr<ScanStateMachine> machine_;
+
+  mutable std::mutex abort_mutex_;
+  std::string abort_reason_;
+  std::string abort_requested_at_;       // UTC ISO time of the stop request
+  std::optional<double> motor_stop_ms_;  // how long Turntable::Stop() took on the stop request
 };
+
+// UTC, ISO 8601 with milliseconds: "2026-11-21T23:01:05.123Z".
+std::string IsoTimeNow();
 
 }  // namespace revolve::station

@@ -1,34 +1,299 @@
 #include "station/station_config.h"
 
+#include <algorithm>
+#include <sstream>
+
+#include <fmt/format.h>
+
 namespace revolve::station {
 namespace {
 
+// Collects the first error of a series of getters, so a parser reads as a list of keys.
+class Reader {
+ public:
+  explicit Reader(const config::Section& section) : section_(section) {}
+
+  void Number(std::string_view key, double& out, double min, double max) {
+    if (error_) return;
+    if (Expected<double> v = section_.Number(key, out, min, max); v) {
+      out = *v;
+    } else {
+      error_ = v.error();
+    }
+  }
+  template <class Int>
+  void Integer(std::string_view key, Int& out, std::int64_t min, std::int64_t max) {
+    if (error_) return;
+    if (Expected<std::int64_t> v = section_.Integer(key, out, min, max); v) {
+      out = static_cast<Int>(*v);
+    } else {
+      error_ = v.error();
+    }
+  }
+  void Boolean(std::string_view key, bool& out) {
+    if (error_) return;
+    if (Expected<bool> v = section_.Boolean(key, out); v) {
+      out = *v;
+    } else {
+      error_ = v.error();
+    }
+  }
+  void String(std::string_view key, std::string& out,
+              std::initializer_list<std::string_view> allowed = {}) {
+    if (error_) return;
+    if (Expected<std::string> v = section_.String(key, out, allowed); v) {
+      out = *v;
+    } else {
+      error_ = v.error();
+    }
+  }
+  void Strings(std::string_view key, std::vector<std::string>& out) {
+    if (error_) return;
+    if (Expected<std::vector<std::string>> v = section_.Strings(key, out); v) {
+      out = *v;
+    } else {
+      error_ = v.error();
+    }
+  }
+  // An optional value: set only when the key is present.
+  template <class T, class Get>
+  void Optional(std::string_view key, std::optional<T>& out, Get get) {
+    if (error_) return;
+    if (!section_.Has(key)) return;
+    T value{};
+    get(key, value);
+    if (!error_) out = std::move(value);
+  }
+  // A GPIO line: an integer offset or a line name; `<key>_active_low` next to it.
+  void Line(std::string_view key, PanelLine& out, bool default_active_low) {
+    if (error_) return;
+    out.active_low = default_active_low;
+    Boolean(fmt::format("{}_active_low", key), out.active_low);
+    if (error_ || !section_.Has(key)) {
+      (void)section_.String(key, "");  // known, even when absent
+      return;
+    }
+    if (Expected<std::int64_t> offset = section_.Integer(key, -1, 0, 1023); offset) {
+      out.offset = static_cast<int>(*offset);
+      return;
+    }
+    Expected<std::string> name = section_.String(key, "");
+    if (!name || name->empty()) {
+      error_ = section_.BadValue(key, "expected a line offset 0..1023 or a line name (\"GPIO17\")");
+      return;
+    }
+    out.name = *name;
+  }
+  void Fail(Error error) {
+    if (!error_) error_ = std::move(error);
+  }
+  // The first error, or the first unknown key of the table.
+  Expected<void> Finish() {
+    if (error_) return std::unexpected(*error_);
+    return section_.CheckNoUnknownKeys();
+  }
+  const config::Section& section() const { return section_; }
+  bool ok() const { return !error_.has_value(); }
+
+ private:
+  const config::Section& section_;
+  std::optional<Error> error_;
+};
+
 Expected<ScanOptions> ParseScanOptions(const config::Section& s) {
   ScanOptions o;
-  auto stops = s.Integer("stops", o.stops, 1, 3600);
-  if (!stops) return std::unexpected(stops.error());
-  o.stops = static_cast<int>(*stops);
-  auto step = s.Number("step_deg", o.step_deg, 0.01, 360.0);
-  if (!step) return std::unexpected(step.error());
-  o.step_deg = *step;
-  auto settle = s.Number("settle_ms", o.settle_ms, 0.0, 60000.0);
-  if (!settle) return std::unexpected(settle.error());
-  o.settle_ms = *settle;
-  auto move_timeout = s.Number("move_timeout_s", o.move_timeout_s, 0.1, 3600.0);
-  if (!move_timeout) return std::unexpected(move_timeout.error());
-  o.move_timeout_s = *move_timeout;
-  auto capture_timeout = s.Number("capture_timeout_s", o.capture_timeout_s, 0.1, 600.0);
-  if (!capture_timeout) return std::unexpected(capture_timeout.error());
-  o.capture_timeout_s = *capture_timeout;
-  if (o.stops * o.step_deg > 360.0 + 1e-9) {
-    return std::unexpected(s.BadValue(
-        "stops", "stops * step_deg exceeds one revolution (360 deg); lower one of them"));
+  Reader r(s);
+  r.Integer("stops", o.stops, 1, 3600);
+  r.Number("step_deg", o.step_deg, 0.01, 360.0);
+  r.Number("settle_ms", o.settle_ms, 0.0, 60000.0);
+  r.Number("move_timeout_s", o.move_timeout_s, 0.1, 3600.0);
+  r.Number("capture_timeout_s", o.capture_timeout_s, 0.1, 600.0);
+  if (r.ok() && o.stops * o.step_deg > 360.0 + 1e-9) {
+    r.Fail(s.BadValue("stops",
+                      "stops * step_deg exceeds one revolution (360 deg); lower one of them"));
   }
-  if (auto unknown = s.CheckNoUnknownKeys(); !unknown) return std::unexpected(unknown.error());
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
   return o;
 }
 
+Expected<SimulateOptions> ParseSimulateOptions(const config::Section& s) {
+  SimulateOptions o;
+  Reader r(s);
+  r.String("drive_fault", o.drive_fault, {"none", "stall", "alarm", "link_down"});
+  r.Integer("drive_fault_move", o.drive_fault_move, 0, 1000000);
+  r.Integer("drive_fault_count", o.drive_fault_count, 1, 1000000);
+  r.Number("drive_fault_at", o.drive_fault_at, 0.0, 1.0);
+  r.Integer("drive_alarm_code", o.drive_alarm_code, 0, 65535);
+  r.Integer("camera_fail_after", o.camera_fail_after, -1, 1000000000);
+  r.Integer("camera_fail_count", o.camera_fail_count, 1, 1000000000);
+  r.Integer("disk_limit_bytes", o.disk_limit_bytes, 0, 1'000'000'000'000);
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
+Expected<StationOptions> ParseStationOptions(const config::Section& s) {
+  StationOptions o;
+  Reader r(s);
+  r.String("recipe", o.recipe);
+  r.String("scans_dir", o.scans_dir);
+  if (r.ok() && o.scans_dir.empty()) r.Fail(s.BadValue("scans_dir", "must not be empty"));
+  r.Integer("camera_retries", o.camera_retries, 0, 20);
+  r.Number("camera_retry_delay_ms", o.camera_retry_delay_ms, 0.0, 60000.0);
+  r.Number("min_free_mb", o.min_free_mb, 0.0, 1e7);
+  if (r.ok()) {
+    Expected<config::Section> simulate = s.Child("simulate");
+    if (!simulate) return std::unexpected(simulate.error());
+    Expected<SimulateOptions> parsed = ParseSimulateOptions(*simulate);
+    if (!parsed) return std::unexpected(parsed.error());
+    o.simulate = std::move(*parsed);
+  }
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
+Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
+  DaemonOptions o;
+  Reader r(s);
+  r.String("socket", o.socket);
+  if (r.ok() && o.socket.empty()) r.Fail(s.BadValue("socket", "must not be empty"));
+  if (r.ok() && o.socket.size() >= 108) {
+    r.Fail(s.BadValue("socket", "is longer than a Unix socket path may be (107 bytes)"));
+  }
+  if (r.ok() && s.Has("socket_mode")) {
+    // "0660" (a string, octal) or 0o660 (a TOML octal integer).
+    if (Expected<std::int64_t> mode = s.Integer("socket_mode", o.socket_mode, 0, 0777); mode) {
+      o.socket_mode = static_cast<int>(*mode);
+    } else {
+      std::string text;
+      r.String("socket_mode", text);
+      if (r.ok()) {
+        const bool octal =
+            !text.empty() && text.size() <= 4 &&
+            std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '7'; });
+        if (!octal) {
+          r.Fail(s.BadValue("socket_mode", "expected an octal mode such as \"0660\""));
+        } else {
+          o.socket_mode = static_cast<int>(std::stoi(text, nullptr, 8));
+        }
+      }
+    }
+  }
+  r.String("socket_group", o.socket_group);
+  r.Integer("max_clients", o.max_clients, 1, 1024);
+  r.Integer("max_request_bytes", o.max_request_bytes, 64, 1 << 20);
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
+Expected<OperatorOptions> ParseOperatorOptions(const config::Section& s) {
+  OperatorOptions o;
+  Reader r(s);
+  r.String("chip", o.chip);
+  r.Line("start_button", o.start_button, true);
+  r.Line("abort_button", o.abort_button, true);
+  r.Line("led", o.led, false);
+  r.Line("lamp", o.lamp, false);
+  r.String("bias", o.bias, {"pull_up", "pull_down", "disable", "as_is"});
+  r.Number("debounce_ms", o.debounce_ms, 0.0, 1000.0);
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
+Expected<Recipe> ParseRecipe(const config::Section& s, std::string name) {
+  Recipe o;
+  o.name = std::move(name);
+  Reader r(s);
+  r.Optional("stops", o.stops, [&](std::string_view k, int& v) { r.Integer(k, v, 1, 3600); });
+  r.Optional("step_deg", o.step_deg,
+             [&](std::string_view k, double& v) { r.Number(k, v, 0.01, 360.0); });
+  r.Optional("settle_ms", o.settle_ms,
+             [&](std::string_view k, double& v) { r.Number(k, v, 0.0, 60000.0); });
+  r.Optional("exposure_us", o.exposure_us,
+             [&](std::string_view k, double& v) { r.Number(k, v, 1.0, 1e7); });
+  r.Optional("segment", o.segment, [&](std::string_view k, std::string& v) { r.String(k, v); });
+  r.Optional("threshold", o.threshold,
+             [&](std::string_view k, int& v) { r.Integer(k, v, 0, 255); });
+  r.Optional("method", o.method, [&](std::string_view k, std::string& v) { r.String(k, v); });
+  r.Optional("resolution", o.resolution,
+             [&](std::string_view k, int& v) { r.Integer(k, v, 16, 1024); });
+  r.Optional("formats", o.formats,
+             [&](std::string_view k, std::vector<std::string>& v) { r.Strings(k, v); });
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
+Expected<std::map<std::string, Recipe, std::less<>>> ParseRecipes(const config::Section& s,
+                                                                  const config::Document& doc) {
+  std::map<std::string, Recipe, std::less<>> recipes;
+  const toml::node* node = doc.root.get("recipes");
+  if (node == nullptr) return recipes;
+  const toml::table* table = node->as_table();
+  if (table == nullptr) {
+    return std::unexpected(config::Section::Root(doc).BadValue("recipes", "expected a table"));
+  }
+  for (auto&& [key, value] : *table) {
+    const std::string name(key.str());
+    Expected<config::Section> child = s.Child(name);
+    if (!child) {
+      return std::unexpected(s.BadValue(
+          name, "expected a table of recipe keys ([recipes." + name + "] with stops = ...)"));
+    }
+    Expected<Recipe> recipe = ParseRecipe(*child, name);
+    if (!recipe) return std::unexpected(recipe.error());
+    recipes.emplace(name, std::move(*recipe));
+  }
+  return recipes;
+}
+
+// Checks the [station.simulate] faults against the configured backends.
+Expected<void> CheckSimulate(const StationConfig& cfg, const config::Section& root) {
+  const SimulateOptions& sim = cfg.station.simulate;
+  if (!sim.Any()) return {};
+  auto station = root.Child("station");
+  auto simulate = station ? station->Child("simulate") : station;
+  if (!simulate) return std::unexpected(simulate.error());
+  if (sim.drive_fault != "none" && cfg.turntable.backend != "mock") {
+    return std::unexpected(simulate->BadValue(
+        "drive_fault", "drive faults can only be simulated with [turntable] backend = \"mock\""));
+  }
+  if (sim.camera_fail_after >= 0 && cfg.camera.backend != "synthetic" &&
+      cfg.camera.backend != "replay") {
+    return std::unexpected(simulate->BadValue(
+        "camera_fail_after",
+        "camera loss can only be simulated with the synthetic or replay camera"));
+  }
+  return {};
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+// The table at `path` under `root`, created when missing. Error when a key on the way is not a
+// table.
+toml::table* EnsureTable(toml::table& root, std::initializer_list<std::string_view> path) {
+  toml::table* table = &root;
+  for (std::string_view key : path) {
+    toml::node* node = table->get(key);
+    if (node == nullptr) {
+      table = table->insert_or_assign(key, toml::table{}).first->second.as_table();
+    } else {
+      table = node->as_table();
+      if (table == nullptr) return nullptr;
+    }
+  }
+  return table;
+}
+
 }  // namespace
+
+std::string PanelLine::Describe() const {
+  std::string s = offset >= 0 ? std::to_string(offset) : "\"" + name + "\"";
+  if (active_low) s += " (active low)";
+  return s;
+}
 
 Expected<StationConfig> ParseStationConfig(const config::Document& document) {
   StationConfig cfg;
@@ -46,12 +311,26 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document) {
     return {};
   };
   for (auto parsed : {section("scan", ParseScanOptions, cfg.scan),
+                      section("station", ParseStationOptions, cfg.station),
+                      section("daemon", ParseDaemonOptions, cfg.daemon),
+                      section("operator", ParseOperatorOptions, cfg.panel),
                       section("turntable", turntable::ParseOptions, cfg.turntable),
                       section("camera", capture::ParseOptions, cfg.camera),
                       section("segment", capture::ParseSegmentOptions, cfg.segment),
                       section("reconstruct", reconstruct::ParseOptions, cfg.reconstruct)}) {
     if (!parsed) return std::unexpected(parsed.error());
   }
+  Expected<config::Section> recipes_section = root.Child("recipes");
+  if (!recipes_section) return std::unexpected(recipes_section.error());
+  auto recipes = ParseRecipes(*recipes_section, document);
+  if (!recipes) return std::unexpected(recipes.error());
+  cfg.recipes = std::move(*recipes);
+  if (cfg.station.recipe != "default" && !cfg.recipes.contains(cfg.station.recipe)) {
+    auto station = root.Child("station");
+    return std::unexpected(station->BadValue(
+        "recipe", fmt::format("names no recipe (known: {})", JoinNames(RecipeNames(cfg)))));
+  }
+  if (auto sim = CheckSimulate(cfg, root); !sim) return std::unexpected(sim.error());
   if (auto unknown = root.CheckNoUnknownKeys(); !unknown) return std::unexpected(unknown.error());
   return cfg;
 }
@@ -62,6 +341,84 @@ Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::p
                                        std::string(config::kEmbeddedOrigin));
   if (!document) return std::unexpected(document.error());
   return ParseStationConfig(*document);
+}
+
+std::vector<std::string> RecipeNames(const StationConfig& config) {
+  std::vector<std::string> names = {"default"};
+  for (const auto& [name, recipe] : config.recipes) {
+    if (name != "default") names.push_back(name);
+  }
+  return names;
+}
+
+Expected<StationConfig> ApplyRecipe(const StationConfig& base, std::string_view name) {
+  if (name.empty()) name = base.station.recipe;
+  if (!base.recipes.contains(name)) {
+    if (name == "default") {
+      StationConfig cfg = base;
+      cfg.recipe = "default";
+      return cfg;
+    }
+    return MakeError(ErrorCode::kNotFound, fmt::format("no recipe \"{}\" in {} (known: {})", name,
+                                                       base.origin, JoinNames(RecipeNames(base))));
+  }
+  // Re-parse the text so that the moved nodes keep their file positions for errors.
+  Expected<config::Document> document = config::Parse(base.text, base.origin);
+  if (!document) return std::unexpected(document.error());
+  toml::table& root = document->root;
+  toml::table* recipe = root.get("recipes")->as_table()->get(name)->as_table();
+  const std::string& backend = base.camera.backend;
+  for (auto&& [key, node] : *recipe) {
+    const std::string_view k = key.str();
+    toml::table* target = nullptr;
+    std::string_view target_key = k;
+    if (k == "stops" || k == "step_deg" || k == "settle_ms") {
+      target = EnsureTable(root, {"scan"});
+    } else if (k == "exposure_us") {
+      if (backend != "v4l2" && backend != "libcamera") {
+        return std::unexpected(
+            config::Section(*document, fmt::format("recipes.{}", name), recipe)
+                .BadValue(k, fmt::format("the {} camera has no exposure control (v4l2 and "
+                                         "libcamera have)",
+                                         backend)));
+      }
+      target = EnsureTable(root, {"camera", backend});
+    } else if (k == "segment" || k == "threshold") {
+      target = EnsureTable(root, {"segment"});
+      if (k == "segment") target_key = "method";
+    } else if (k == "method" || k == "resolution" || k == "formats") {
+      target = EnsureTable(root, {"reconstruct"});
+    }
+    if (target == nullptr) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("{}: recipe \"{}\": cannot apply key \"{}\"", base.origin, name, k));
+    }
+    target->insert_or_assign(target_key, std::move(node));
+  }
+  root.erase("recipes");
+  if (toml::table* station = root.get_as<toml::table>("station")) station->erase("recipe");
+
+  std::ostringstream text;
+  text << "# revolve: the effective configuration of a scan: recipe \"" << name << "\" of "
+       << base.origin << "\n"
+       << toml::toml_formatter(root, toml::toml_formatter::default_flags &
+                                         ~toml::format_flags::allow_literal_strings &
+                                         ~toml::format_flags::indentation)
+       << "\n";
+  // Parse the merged tree itself (with the recipe's positions) to validate it...
+  Expected<StationConfig> merged = ParseStationConfig(*document);
+  if (!merged) {
+    Error e = merged.error();
+    e.message += fmt::format(" (with recipe \"{}\")", name);
+    return std::unexpected(e);
+  }
+  // ...and keep the serialized text, which `revolve scan --config scan.toml` reproduces.
+  merged->text = text.str();
+  merged->recipe = std::string(name);
+  merged->recipes = base.recipes;
+  merged->station.recipe = base.station.recipe;
+  return merged;
 }
 
 }  // namespace revolve::station

@@ -1,8 +1,13 @@
-// The whole station's configuration: [scan] plus each module's own section.
+// The whole station's configuration: [scan], [station], [daemon], [operator], [recipes.*] plus
+// each module's own section. Every key, its unit, default and range: docs/station.md.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "base/error.h"
 #include "capture/camera.h"
@@ -15,17 +20,104 @@ namespace revolve::station {
 
 // [scan]
 struct ScanOptions {
-  int stops = 36;
-  double step_deg = 10.0;
-  double settle_ms = 30.0;
-  double move_timeout_s = 10.0;
-  double capture_timeout_s = 5.0;
+  int stops = 36;                  // [1, 3600]; stops * step_deg <= 360
+  double step_deg = 10.0;          // [0.01, 360]
+  double settle_ms = 30.0;         // [0, 60000]
+  double move_timeout_s = 10.0;    // [0.1, 3600]
+  double capture_timeout_s = 5.0;  // [0.1, 600]
+};
+
+// [station.simulate]: fault injection for the simulated rig (tests, demos). Refused with a real
+// drive or camera.
+struct SimulateOptions {
+  std::string drive_fault = "none";  // none | stall | alarm | link_down (mock turntable only)
+  int drive_fault_move = 0;          // the MoveTo() (counted from the daemon's start) that faults
+  int drive_fault_count = 1;         // how many consecutive moves fault
+  double drive_fault_at = 0.5;       // fraction of the move's time at which it strikes, [0, 1]
+  int drive_alarm_code = 0x31;       // alarm code reported with drive_fault = "alarm"
+  std::int64_t camera_fail_after =
+      -1;  // captures (since start-up) before the camera is lost; -1 never
+  std::int64_t camera_fail_count = 1;  // consecutive captures that fail with no_device
+  std::int64_t disk_limit_bytes = 0;   // a scan folder's simulated disk space; 0 = unlimited
+
+  bool Any() const {
+    return drive_fault != "none" || camera_fail_after >= 0 || disk_limit_bytes > 0;
+  }
+};
+
+// [station]
+struct StationOptions {
+  std::string recipe = "default";  // recipe of `revolve start` without --recipe and of the button
+  // Where the daemon creates scans/<id>. Relative: to $STATE_DIRECTORY (systemd's
+  // StateDirectory=) when set, else to the working directory.
+  std::string scans_dir = "scans";
+  int camera_retries = 2;  // re-tries of a failed capture (reopening the camera), [0, 20]
+  double camera_retry_delay_ms = 200.0;  // [0, 60000]
+  double min_free_mb = 16.0;  // a start is refused with less free space in scans_dir, [0, 1e7]
+  SimulateOptions simulate;
+};
+
+// [daemon]
+struct DaemonOptions {
+  std::string socket = "/run/revolve/control.sock";  // the control socket's path
+  int socket_mode = 0660;                            // octal string "0660", [0, 0777]
+  std::string socket_group;                          // group name; "" = the daemon's own group
+  int max_clients = 32;                              // [1, 1024]
+  int max_request_bytes = 4096;                      // [64, 1048576]
+};
+
+// One GPIO line of the operator panel: an offset or a line name on [operator] chip.
+struct PanelLine {
+  int offset = -1;
+  std::string name;
+  bool active_low = false;
+
+  bool present() const { return offset >= 0 || !name.empty(); }
+  std::string Describe() const;
+};
+
+// [operator]: the start button, an optional abort button, the status LED, an optional lamp
+// relay. No line configured: no panel.
+struct OperatorOptions {
+  std::string chip = "gpiochip0";  // name, /dev path or label
+  PanelLine start_button;          // start_button, start_button_active_low (default true)
+  PanelLine abort_button;          // abort_button, abort_button_active_low (default true)
+  PanelLine led;                   // led, led_active_low (default false)
+  PanelLine lamp;                  // lamp, lamp_active_low (default false)
+  std::string bias = "pull_up";    // buttons: pull_up | pull_down | disable | as_is
+  double debounce_ms = 30.0;       // [0, 1000]
+
+  bool Any() const {
+    return start_button.present() || abort_button.present() || led.present() || lamp.present();
+  }
+};
+
+// [recipes.NAME]: a named scan. Each key overrides one key of the base configuration:
+//   stops, step_deg, settle_ms -> [scan]; exposure_us -> [camera.v4l2] / [camera.libcamera];
+//   segment -> [segment] method; threshold -> [segment] threshold;
+//   method, resolution, formats -> [reconstruct].
+struct Recipe {
+  std::string name;
+  std::optional<int> stops;
+  std::optional<double> step_deg;
+  std::optional<double> settle_ms;
+  std::optional<double> exposure_us;
+  std::optional<std::string> segment;
+  std::optional<int> threshold;
+  std::optional<std::string> method;
+  std::optional<int> resolution;
+  std::optional<std::vector<std::string>> formats;
 };
 
 struct StationConfig {
   std::string origin;  // the file it came from, or config::kEmbeddedOrigin
-  std::string text;    // the TOML text as given (saved as scan.toml in every scan folder)
+  std::string text;    // the TOML as given, or the effective TOML after ApplyRecipe (scan.toml)
+  std::string recipe = "default";  // the recipe this configuration is the effect of
   ScanOptions scan;
+  StationOptions station;
+  DaemonOptions daemon;
+  OperatorOptions panel;
+  std::map<std::string, Recipe, std::less<>> recipes;  // "default" is implicit
   turntable::TurntableOptions turntable;
   capture::CameraOptions camera;
   capture::SegmentOptions segment;
@@ -38,5 +130,15 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document);
 
 // Loads `path`, or the embedded default (the simulated rig) when `path` is empty.
 Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::path>& path);
+
+// The configuration of one scan with recipe `name` ("" = base.station.recipe): the recipe's keys
+// laid over the base configuration. "default" without a [recipes.default] table is the base
+// itself. The result's `text` is the effective TOML (no [recipes], no station.recipe), which
+// reproduces the scan. Errors: not_found for an unknown recipe (naming the known ones);
+// bad_input naming file:line:column when a recipe's value does not fit its key.
+Expected<StationConfig> ApplyRecipe(const StationConfig& base, std::string_view name);
+
+// The names of the recipes: "default" first, then the configured ones.
+std::vector<std::string> RecipeNames(const StationConfig& config);
 
 }  // namespace revolve::station

@@ -10,6 +10,8 @@
 #include "base/error.h"
 #include "base/sim_plate.h"
 #include "config/config.h"
+#include "turntable/gpio/gpio_options.h"
+#include "turntable/modbus/modbus_options.h"
 
 namespace revolve::turntable {
 
@@ -103,21 +105,31 @@ struct MockOptions {
 };
 
 struct TurntableOptions {
-  std::string backend = "mock";  // mock (modbus and gpio are not built yet)
+  std::string backend = "mock";  // mock | modbus | gpio
+  // Remove motor power when a scan ends (completed, failed or aborted) and when the turntable
+  // object is destroyed; false keeps the plate held by the motor. The station calls Disable()
+  // after a scan only when this is true.
+  bool disable_at_end = true;
   MockOptions mock;
+  ModbusOptions modbus;  // [turntable.modbus], parsed when present or when backend = "modbus"
+  GpioOptions gpio;      // [turntable.gpio], parsed when present or when backend = "gpio"
 };
 
-// Parses [turntable] (`section`, as returned by Root().Child("turntable")) and its backend's
-// sub-table; a missing table gives the defaults. Errors (bad_input, with file:line:column and
-// the key): unknown keys in either table, wrong types, values out of range, an unknown backend.
-// "modbus" and "gpio" (or a [turntable.modbus] / [turntable.gpio] table) are unsupported: those
-// backends are not built yet.
+// Parses [turntable] (`section`, as returned by Root().Child("turntable")) and its backends'
+// sub-tables; a missing table gives the defaults. [turntable.modbus] resolves and loads its drive
+// profile, so a missing or broken profile is a config error. Errors (bad_input, with
+// file:line:column and the key): unknown keys in any table, wrong types, values out of range, an
+// unknown backend; not_found/bad_input for the profile. Options are parsed even when this build
+// lacks a backend (Create() reports that).
 Expected<TurntableOptions> ParseOptions(const config::Section& section);
 
-// Creates the configured turntable. `plate` is the simulated rig's plate (written by the mock;
-// may be null for real backends, and for the mock when nobody watches the plate). Errors:
-// bad_input when the options are out of the ranges above, unsupported for a backend that is
-// not built.
+// Creates the configured turntable and opens its device (the serial port or TCP connection,
+// the GPIO lines). `plate` is the simulated rig's plate: the mock writes its angle; the modbus
+// and gpio backends publish their read-back (or counted) angle and moving flag to it, so the
+// synthetic camera also works with them (a drive simulator, a bench rig). May be null. Errors:
+// bad_input when the options are out of the ranges above; unsupported for a backend this build
+// lacks (the message names the CMake option, REVOLVE_WITH_MODBUS or REVOLVE_WITH_GPIO);
+// not_found, busy, link_down, no_device when the device cannot be opened.
 Expected<std::unique_ptr<Turntable>> Create(const TurntableOptions& options,
                                             std::shared_ptr<SimulatedPlate> plate);
 

@@ -69,4 +69,16 @@ cv::Mat FillHoles(const cv::Mat& mask) {
   return out;
 }
 
+cv::Mat FillHolesUpTo(const cv::Mat& mask, int max_area_px) {
+  cv::Mat filled = FillHoles(mask);
+  if (max_area_px <= 0) return filled;
+  const cv::Mat holes = filled & ~mask;
+  cv::Mat labels, stats, centroids;
+  const int count = cv::connectedComponentsWithStats(holes, labels, stats, centroids, 4, CV_32S);
+  for (int label = 1; label < count; ++label) {
+    if (stats.at<int>(label, cv::CC_STAT_AREA) > max_area_px) filled.setTo(0, labels == label);
+  }
+  return filled;
+}
+
 }  // namespace revolve::capture

@@ -25,4 +25,8 @@ cv::Mat KeepLargestComponent(const cv::Mat& mask);
 // diagonally still counts as closed.
 cv::Mat FillHoles(const cv::Mat& mask);
 
+// FillHoles, but holes (4-connected background regions not reaching the border) larger than
+// `max_area_px` stay open. max_area_px <= 0 fills every hole.
+cv::Mat FillHolesUpTo(const cv::Mat& mask, int max_area_px);
+
 }  // namespace revolve::capture

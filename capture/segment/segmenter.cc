@@ -1,6 +1,11 @@
 #include "capture/segmenter.h"
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+
 #include <fmt/format.h>
+#include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/segment/mask_ops.h"
@@ -9,96 +14,425 @@ namespace revolve::capture {
 namespace {
 
 constexpr int kMaxMorphologyRadiusPx = 50;
-// Otsu splits any image in two, even an empty scene's noise. When the two classes' mean grey
-// levels differ by less than this, there is no object: the mask is empty.
-constexpr double kMinOtsuContrast = 16.0;
+constexpr int kMaxCoordinatePx = 1 << 20;
+// A chroma key whose chroma (|Cb, Cr| in 8-bit units) is weaker than this is grey: no key.
+constexpr double kMinKeyChroma = 12.0;
 
-// A dark backdrop and a brighter object: grey > threshold is object.
-class ThresholdSegmenter final : public Segmenter {
- public:
-  explicit ThresholdSegmenter(const SegmentOptions& options) : options_(options) {}
-
-  Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& /*background*/) const override {
-    if (image.empty()) return MakeError(ErrorCode::kBadInput, "segmentation: empty image");
-    if (image.depth() != CV_8U ||
-        (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("segmentation: unsupported image type {} (8-bit grey, BGR "
-                                   "or BGRA expected)",
-                                   cv::typeToString(image.type())));
-    }
-    const cv::Mat grey = GreyLevels(image);
-    cv::Mat mask;
-    if (options_.method == "otsu") {
-      const double threshold =
-          cv::threshold(grey, mask, 0.0, 255.0, cv::THRESH_BINARY | cv::THRESH_OTSU);
-      const cv::Mat below = grey <= threshold;
-      const double dark_mean = cv::mean(grey, below)[0];
-      const double bright_mean = cv::mean(grey, mask)[0];
-      if (cv::countNonZero(mask) == 0 || cv::countNonZero(below) == 0 ||
-          bright_mean - dark_mean < kMinOtsuContrast) {
-        return cv::Mat(cv::Mat::zeros(image.size(), CV_8UC1));
-      }
-    } else {
-      cv::threshold(grey, mask, options_.threshold, 255.0, cv::THRESH_BINARY);
-    }
-    mask = CloseMask(OpenMask(mask, options_.open_px), options_.close_px);
-    if (options_.keep_largest) mask = KeepLargestComponent(mask);
-    return FillHoles(mask);
-  }
-
- private:
-  SegmentOptions options_;
-};
-
-Expected<void> Validate(const SegmentOptions& options) {
-  if (options.method != "otsu" && options.method != "fixed") {
-    return MakeError(
-        ErrorCode::kBadInput,
-        fmt::format("[segment] method = \"{}\" is not one of \"otsu\", \"fixed\"", options.method));
-  }
-  if (options.threshold < 0 || options.threshold > 255) {
-    return MakeError(
-        ErrorCode::kBadInput,
-        fmt::format("[segment] threshold = {} is out of range [0, 255]", options.threshold));
-  }
-  for (const auto& [key, radius] :
-       {std::pair{"open_px", options.open_px}, std::pair{"close_px", options.close_px}}) {
-    if (radius < 0 || radius > kMaxMorphologyRadiusPx) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("[segment] {} = {} is out of range [0, {}]", key, radius,
-                                   kMaxMorphologyRadiusPx));
-    }
+Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
+  if (image.empty())
+    return MakeError(ErrorCode::kBadInput, fmt::format("segmentation: empty {}", what));
+  if (image.depth() != CV_8U ||
+      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("segmentation: unsupported {} type {} (8-bit grey, BGR or BGRA "
+                                 "expected)",
+                                 what, cv::typeToString(image.type())));
   }
   return {};
 }
 
+// BGR (CV_8UC3) view of an 8-bit image with 1, 3 or 4 channels.
+cv::Mat Bgr(const cv::Mat& image) {
+  if (image.channels() == 3) return image;
+  cv::Mat out;
+  cv::cvtColor(image, out, image.channels() == 4 ? cv::COLOR_BGRA2BGR : cv::COLOR_GRAY2BGR);
+  return out;
+}
+
+struct OtsuSplit {
+  int threshold = 0;  // class 0: level <= threshold
+  double low_mean = 0.0;
+  double high_mean = 0.0;
+  bool two_classes = false;
+};
+
+// Otsu's threshold over the pixels of `grey` (CV_8UC1) where `roi` is set.
+OtsuSplit Otsu(const cv::Mat& grey, const cv::Mat& roi) {
+  std::array<double, 256> histogram{};
+  for (int y = 0; y < grey.rows; ++y) {
+    const auto* g = grey.ptr<std::uint8_t>(y);
+    const auto* r = roi.ptr<std::uint8_t>(y);
+    for (int x = 0; x < grey.cols; ++x) {
+      if (r[x]) histogram[g[x]] += 1.0;
+    }
+  }
+  double total = 0.0, sum = 0.0;
+  for (int i = 0; i < 256; ++i) {
+    total += histogram[i];
+    sum += i * histogram[i];
+  }
+  OtsuSplit best;
+  double best_variance = -1.0;
+  double w0 = 0.0, sum0 = 0.0;
+  for (int t = 0; t < 255; ++t) {
+    w0 += histogram[t];
+    sum0 += t * histogram[t];
+    const double w1 = total - w0;
+    if (w0 <= 0.0 || w1 <= 0.0) continue;
+    const double m0 = sum0 / w0, m1 = (sum - sum0) / w1;
+    const double variance = w0 * w1 * (m0 - m1) * (m0 - m1);
+    if (variance > best_variance) {
+      best_variance = variance;
+      best = {t, m0, m1, true};
+    }
+  }
+  return best;
+}
+
+class PipelineSegmenter final : public Segmenter {
+ public:
+  explicit PipelineSegmenter(const SegmentOptions& options) : options_(options) {}
+
+  bool NeedsBackground() const override { return options_.method == "background"; }
+
+  Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const override {
+    if (auto ok = CheckImage(image, "image"); !ok) return std::unexpected(ok.error());
+    const cv::Mat roi = RegionOfInterestMask(options_, image.size());
+    Expected<cv::Mat> raw = cv::Mat();
+    if (options_.method == "otsu" || options_.method == "fixed") {
+      raw = Threshold(image, roi);
+    } else if (options_.method == "background") {
+      raw = Difference(image, background, roi);
+    } else {
+      raw = Chroma(image, roi);
+    }
+    if (!raw) return raw;
+    cv::Mat mask = *raw & roi;
+    mask = CloseMask(OpenMask(mask, options_.open_px), options_.close_px);
+    if (options_.keep_largest) mask = KeepLargestComponent(mask);
+    if (options_.fill_holes) mask = FillHolesUpTo(mask, options_.max_hole_area_px);
+    return cv::Mat(mask & roi);
+  }
+
+ private:
+  Expected<cv::Mat> Threshold(const cv::Mat& image, const cv::Mat& roi) const {
+    const cv::Mat grey = GreyLevels(image);
+    const bool dark_backdrop = options_.backdrop == "dark";
+    const int type = dark_backdrop ? cv::THRESH_BINARY : cv::THRESH_BINARY_INV;
+    double threshold = options_.threshold;
+    if (options_.method == "otsu") {
+      const OtsuSplit split = Otsu(grey, roi);
+      if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
+        return cv::Mat(cv::Mat::zeros(image.size(), CV_8UC1));
+      }
+      threshold = split.threshold;
+    } else if (!dark_backdrop) {
+      threshold -= 1.0;  // grey < threshold is object: THRESH_BINARY_INV keeps grey <= thresh
+    }
+    cv::Mat mask;
+    cv::threshold(grey, mask, threshold, 255.0, type);
+    return mask;
+  }
+
+  Expected<cv::Mat> Difference(const cv::Mat& image, const cv::Mat& background,
+                               const cv::Mat& roi) const {
+    if (background.empty()) {
+      return MakeError(ErrorCode::kBadInput,
+                       "segmentation: [segment] method = \"background\" needs a frame of the "
+                       "empty scene, and none was given");
+    }
+    if (auto ok = CheckImage(background, "background frame"); !ok) {
+      return std::unexpected(ok.error());
+    }
+    if (background.size() != image.size()) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("segmentation: the background frame is {}x{} but the image is "
+                                   "{}x{}; capture the empty scene again",
+                                   background.cols, background.rows, image.cols, image.rows));
+    }
+    const cv::Mat distance8 = ColourDistance(Bgr(image), Bgr(background));
+    double threshold = options_.difference_threshold;
+    if (threshold <= 0.0) {
+      const OtsuSplit split = Otsu(distance8, roi);
+      threshold = std::max<double>(split.threshold, options_.min_contrast);
+    }
+    cv::Mat mask;
+    cv::threshold(distance8, mask, threshold, 255.0, cv::THRESH_BINARY);
+    return mask;
+  }
+
+  Expected<cv::Mat> Chroma(const cv::Mat& image, const cv::Mat& roi) const {
+    if (image.channels() == 1) {
+      return MakeError(ErrorCode::kBadInput,
+                       "segmentation: [segment] method = \"chroma\" needs a colour image, got a "
+                       "grey one");
+    }
+    const cv::Mat bgr = Bgr(image);
+    cv::Scalar key;
+    if (options_.chroma_key_bgr.size() == 3) {
+      key = cv::Scalar(options_.chroma_key_bgr[0], options_.chroma_key_bgr[1],
+                       options_.chroma_key_bgr[2]);
+    } else {
+      key = EstimateBackdropColour(bgr, roi);
+    }
+    const Eigen::Vector2d key_chroma = ChromaOf(key[0], key[1], key[2]);
+    const double key_norm2 = key_chroma.squaredNorm();
+    if (key_norm2 < kMinKeyChroma * kMinKeyChroma) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("segmentation: the backdrop colour (B, G, R) = ({:.0f}, {:.0f}, "
+                                   "{:.0f}) is too grey for a chroma key; use a green or blue "
+                                   "backdrop, or method = \"otsu\"",
+                                   key[0], key[1], key[2]));
+    }
+    cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
+    for (int y = 0; y < bgr.rows; ++y) {
+      const auto* p = bgr.ptr<cv::Vec3b>(y);
+      auto* m = mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < bgr.cols; ++x) {
+        const Eigen::Vector2d c = ChromaOf(p[x][0], p[x][1], p[x][2]);
+        // Share of the key's chroma in this pixel: 1 on the backdrop, ~0 on a neutral object,
+        // the object's share of coverage on an anti-aliased edge in between.
+        const double share = c.dot(key_chroma) / key_norm2;
+        m[x] = share < options_.chroma_fraction ? 255 : 0;
+      }
+    }
+    return mask;
+  }
+
+  static Eigen::Vector2d ChromaOf(double b, double g, double r) {
+    const double luma = 0.299 * r + 0.587 * g + 0.114 * b;
+    return {0.564 * (b - luma), 0.713 * (r - luma)};
+  }
+
+  // Per-pixel Euclidean distance of two BGR images, saturated to 8 bits.
+  static cv::Mat ColourDistance(const cv::Mat& a, const cv::Mat& b) {
+    cv::Mat out(a.size(), CV_8UC1);
+    for (int y = 0; y < a.rows; ++y) {
+      const auto* pa = a.ptr<cv::Vec3b>(y);
+      const auto* pb = b.ptr<cv::Vec3b>(y);
+      auto* o = out.ptr<std::uint8_t>(y);
+      for (int x = 0; x < a.cols; ++x) {
+        int sum = 0;
+        for (int c = 0; c < 3; ++c) {
+          const int d = int(pa[x][c]) - int(pb[x][c]);
+          sum += d * d;
+        }
+        o[x] = cv::saturate_cast<std::uint8_t>(std::sqrt(static_cast<double>(sum)));
+      }
+    }
+    return out;
+  }
+
+  SegmentOptions options_;
+};
+
+// An invalid option: its key and what is wrong with it.
+struct Problem {
+  std::string key;
+  std::string what;
+};
+
+std::unexpected<Problem> Invalid(std::string_view key, std::string what) {
+  return std::unexpected(Problem{std::string(key), std::move(what)});
+}
+
+std::expected<void, Problem> FindProblem(const SegmentOptions& options) {
+  if (options.method != "otsu" && options.method != "fixed" && options.method != "background" &&
+      options.method != "chroma") {
+    return Invalid("method", fmt::format("\"{}\" is not one of \"otsu\", \"fixed\", "
+                                         "\"background\", \"chroma\"",
+                                         options.method));
+  }
+  if (options.backdrop != "dark" && options.backdrop != "light") {
+    return Invalid("backdrop",
+                   fmt::format("\"{}\" is not one of \"dark\", \"light\"", options.backdrop));
+  }
+  if (options.threshold < 0 || options.threshold > 255) {
+    return Invalid("threshold", fmt::format("{} is out of range [0, 255]", options.threshold));
+  }
+  if (!(options.min_contrast >= 0.0 && options.min_contrast <= 255.0)) {
+    return Invalid("min_contrast", "out of range [0, 255]");
+  }
+  if (!(options.difference_threshold >= 0.0 && options.difference_threshold <= 442.0)) {
+    return Invalid("difference_threshold", "out of range [0, 442]");
+  }
+  if (!options.chroma_key_bgr.empty()) {
+    if (options.chroma_key_bgr.size() != 3) {
+      return Invalid("chroma_key_bgr", "needs three numbers, B G R");
+    }
+    for (double c : options.chroma_key_bgr) {
+      if (!(c >= 0.0 && c <= 255.0)) {
+        return Invalid("chroma_key_bgr", "each value must lie in [0, 255]");
+      }
+    }
+  }
+  if (!(options.chroma_fraction > 0.0 && options.chroma_fraction < 1.0)) {
+    return Invalid("chroma_fraction", "out of range (0, 1)");
+  }
+  if (!options.roi_px.empty()) {
+    if (options.roi_px.size() != 4) {
+      return Invalid("roi_px", "needs four numbers: left, top, right, bottom");
+    }
+    if (options.roi_px[2] <= options.roi_px[0] || options.roi_px[3] <= options.roi_px[1]) {
+      return Invalid("roi_px", "right must exceed left and bottom must exceed top");
+    }
+  }
+  if (!options.roi_polygon_px.empty() &&
+      (options.roi_polygon_px.size() % 2 != 0 || options.roi_polygon_px.size() < 6)) {
+    return Invalid("roi_polygon_px", "needs at least three x y pairs");
+  }
+  if (options.exclude_px.size() % 4 != 0) {
+    return Invalid("exclude_px", "needs groups of four numbers: left, top, right, bottom");
+  }
+  for (const auto& [key, radius] :
+       {std::pair{"open_px", options.open_px}, std::pair{"close_px", options.close_px}}) {
+    if (radius < 0 || radius > kMaxMorphologyRadiusPx) {
+      return Invalid(key,
+                     fmt::format("{} is out of range [0, {}]", radius, kMaxMorphologyRadiusPx));
+    }
+  }
+  if (options.max_hole_area_px < 0) return Invalid("max_hole_area_px", "must not be negative");
+  return {};
+}
+
+// Reads an array of integers (given as TOML numbers) within [min, max].
+Expected<std::vector<int>> Integers(const config::Section& section, std::string_view key,
+                                    std::size_t count_multiple) {
+  auto values = section.Numbers(key, {});
+  if (!values) return std::unexpected(values.error());
+  if (values->size() % count_multiple != 0) {
+    return std::unexpected(section.BadValue(
+        key, fmt::format("needs groups of {} numbers, got {}", count_multiple, values->size())));
+  }
+  std::vector<int> out;
+  for (double v : *values) {
+    if (v != std::floor(v) || std::abs(v) > kMaxCoordinatePx) {
+      return std::unexpected(section.BadValue(key, fmt::format("{} is not a pixel coordinate", v)));
+    }
+    out.push_back(static_cast<int>(v));
+  }
+  return out;
+}
+
 }  // namespace
+
+cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size) {
+  const cv::Rect image(0, 0, size.width, size.height);
+  cv::Mat roi(size, CV_8UC1, cv::Scalar(0));
+  cv::Rect inside = image;
+  if (options.roi_px.size() == 4) {
+    inside = cv::Rect(cv::Point(options.roi_px[0], options.roi_px[1]),
+                      cv::Point(options.roi_px[2], options.roi_px[3])) &
+             image;
+  }
+  roi(inside).setTo(255);
+  if (options.roi_polygon_px.size() >= 6) {
+    std::vector<cv::Point> polygon;
+    for (std::size_t i = 0; i + 1 < options.roi_polygon_px.size(); i += 2) {
+      polygon.emplace_back(options.roi_polygon_px[i], options.roi_polygon_px[i + 1]);
+    }
+    cv::Mat inside_polygon(size, CV_8UC1, cv::Scalar(0));
+    cv::fillPoly(inside_polygon, std::vector<std::vector<cv::Point>>{polygon}, cv::Scalar(255));
+    roi &= inside_polygon;
+  }
+  for (std::size_t i = 0; i + 3 < options.exclude_px.size(); i += 4) {
+    const cv::Rect excluded =
+        cv::Rect(cv::Point(options.exclude_px[i], options.exclude_px[i + 1]),
+                 cv::Point(options.exclude_px[i + 2], options.exclude_px[i + 3])) &
+        image;
+    if (excluded.area() > 0) roi(excluded).setTo(0);
+  }
+  return roi;
+}
+
+cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
+  cv::Rect box = cv::boundingRect(roi);
+  if (box.area() == 0) box = cv::Rect(0, 0, image.cols, image.rows);
+  std::array<std::vector<std::uint8_t>, 3> channels;
+  auto add = [&](int x, int y) {
+    const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+    for (int c = 0; c < 3; ++c) channels[c].push_back(p[c]);
+  };
+  for (int x = box.x; x < box.x + box.width; ++x) {
+    add(x, box.y);
+    add(x, box.y + box.height - 1);
+  }
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    add(box.x, y);
+    add(box.x + box.width - 1, y);
+  }
+  cv::Scalar out;
+  for (int c = 0; c < 3; ++c) {
+    auto& v = channels[c];
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    out[c] = v[v.size() / 2];
+  }
+  return out;
+}
 
 Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
   SegmentOptions options;
-  auto method = section.String("method", options.method, {"otsu", "fixed"});
+  auto method = section.String("method", options.method, {"otsu", "fixed", "background", "chroma"});
   if (!method) return std::unexpected(method.error());
+  auto backdrop = section.String("backdrop", options.backdrop, {"dark", "light"});
+  if (!backdrop) return std::unexpected(backdrop.error());
   auto threshold = section.Integer("threshold", options.threshold, 0, 255);
   if (!threshold) return std::unexpected(threshold.error());
+  auto min_contrast = section.Number("min_contrast", options.min_contrast, 0.0, 255.0);
+  if (!min_contrast) return std::unexpected(min_contrast.error());
+  auto difference =
+      section.Number("difference_threshold", options.difference_threshold, 0.0, 442.0);
+  if (!difference) return std::unexpected(difference.error());
+  auto key = section.Numbers("chroma_key_bgr", {});
+  if (!key) return std::unexpected(key.error());
+  if (!key->empty() && key->size() != 3) {
+    return std::unexpected(section.BadValue("chroma_key_bgr", "needs three numbers, B G R"));
+  }
+  for (double c : *key) {
+    if (!(c >= 0.0 && c <= 255.0)) {
+      return std::unexpected(section.BadValue("chroma_key_bgr", "each value must lie in [0, 255]"));
+    }
+  }
+  auto fraction = section.Number("chroma_fraction", options.chroma_fraction, 0.01, 0.99);
+  if (!fraction) return std::unexpected(fraction.error());
+  auto roi = Integers(section, "roi_px", 4);
+  if (!roi) return std::unexpected(roi.error());
+  if (roi->size() > 4) {
+    return std::unexpected(
+        section.BadValue("roi_px", "needs four numbers: left, top, right, bottom"));
+  }
+  auto polygon = Integers(section, "roi_polygon_px", 2);
+  if (!polygon) return std::unexpected(polygon.error());
+  auto exclude = Integers(section, "exclude_px", 4);
+  if (!exclude) return std::unexpected(exclude.error());
   auto open_px = section.Integer("open_px", options.open_px, 0, kMaxMorphologyRadiusPx);
   if (!open_px) return std::unexpected(open_px.error());
   auto close_px = section.Integer("close_px", options.close_px, 0, kMaxMorphologyRadiusPx);
   if (!close_px) return std::unexpected(close_px.error());
   auto keep_largest = section.Boolean("keep_largest", options.keep_largest);
   if (!keep_largest) return std::unexpected(keep_largest.error());
+  auto fill_holes = section.Boolean("fill_holes", options.fill_holes);
+  if (!fill_holes) return std::unexpected(fill_holes.error());
+  auto max_hole = section.Integer("max_hole_area_px", options.max_hole_area_px, 0, 1 << 30);
+  if (!max_hole) return std::unexpected(max_hole.error());
   if (auto ok = section.CheckNoUnknownKeys(); !ok) return std::unexpected(ok.error());
   options.method = *method;
+  options.backdrop = *backdrop;
   options.threshold = static_cast<int>(*threshold);
+  options.min_contrast = *min_contrast;
+  options.difference_threshold = *difference;
+  options.chroma_key_bgr = *key;
+  options.chroma_fraction = *fraction;
+  options.roi_px = *roi;
+  options.roi_polygon_px = *polygon;
+  options.exclude_px = *exclude;
   options.open_px = static_cast<int>(*open_px);
   options.close_px = static_cast<int>(*close_px);
   options.keep_largest = *keep_largest;
+  options.fill_holes = *fill_holes;
+  options.max_hole_area_px = static_cast<int>(*max_hole);
+  if (auto ok = FindProblem(options); !ok) {
+    return std::unexpected(section.BadValue(ok.error().key, ok.error().what));
+  }
   return options;
 }
 
 Expected<std::unique_ptr<Segmenter>> CreateSegmenter(const SegmentOptions& options) {
-  if (auto ok = Validate(options); !ok) return std::unexpected(ok.error());
-  return std::unique_ptr<Segmenter>(std::make_unique<ThresholdSegmenter>(options));
+  if (auto ok = FindProblem(options); !ok) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("[segment] {}: {}", ok.error().key, ok.error().what));
+  }
+  return std::unique_ptr<Segmenter>(std::make_unique<PipelineSegmenter>(options));
 }
 
 }  // namespace revolve::capture

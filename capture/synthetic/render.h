@@ -1,10 +1,13 @@
-// Photo-like rendering of a Scene through a Rig: Lambert shading under one point light near the
-// camera plus ambient light, a procedural texture fixed to the object (it turns with the plate),
-// a uniform dark backdrop, an anti-aliased silhouette and seeded Gaussian sensor noise.
+// Photo-like rendering of a Scene through a SimProjection: Lambert shading under one point light
+// near the camera plus ambient light, a procedural texture fixed to the object (it turns with
+// the plate), a uniform backdrop of any colour, the table's plate and fixed fixtures (flat
+// colours), anti-aliased edges between all of them, optional Gaussian blur and seeded Gaussian
+// sensor noise. Analytic objects are ray cast; meshes are rasterized with a z-buffer.
 // Pure: the same inputs give the same image, bit for bit.
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -14,10 +17,44 @@
 
 namespace revolve::capture {
 
+// A box fixed to the table (a clamp, a post, the motor housing): it does not turn.
+struct Fixture {
+  Eigen::Vector3d min_mm = Eigen::Vector3d::Zero();  // table frame
+  Eigen::Vector3d max_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3f bgr{200.0f, 200.0f, 200.0f};  // the level the camera sees, 0..255
+};
+
+// What stands around the object. Colours are the levels the camera sees (flat, unlit).
+struct Stage {
+  double plate_radius_mm = 0.0;  // 0: no plate
+  double plate_thickness_mm = 8.0;
+  Eigen::Vector3f plate_top_bgr{20.0f, 20.0f, 20.0f};
+  Eigen::Vector3f plate_rim_bgr{150.0f, 150.0f, 150.0f};  // the plate's side and underside
+  std::vector<Fixture> fixtures;
+};
+
 struct RenderSettings {
-  int backdrop_grey = 20;    // 0..255, the backdrop's level in every channel
-  double noise_sigma = 3.0;  // standard deviation of the noise added to every channel
-  std::uint64_t seed = 1;    // with the frame's sequence number, seeds the noise
+  Eigen::Vector3f backdrop_bgr{20.0f, 20.0f, 20.0f};  // 0..255
+  float object_albedo = 1.0f;  // scales the texture's albedo (darker objects for a light backdrop)
+  double noise_sigma = 3.0;    // standard deviation of the noise added to every channel
+  double blur_sigma_px = 0.0;  // Gaussian blur of the optics (before the noise); 0: none
+  std::uint64_t seed = 1;      // with the frame's sequence number, seeds the noise
+  Stage stage;
+};
+
+// What each pixel centre sees, in RenderOutput::surface.
+enum SurfaceId : std::uint8_t {
+  kBackdropSurface = 0,
+  kObjectSurface = 1,
+  kPlateTopSurface = 2,
+  kPlateRimSurface = 3,
+  kFixtureSurface = 4,  // fixture i is kFixtureSurface + i
+};
+
+struct RenderOutput {
+  cv::Mat image;      // CV_8UC3 BGR
+  cv::Mat true_mask;  // CV_8UC1: 255 where the pixel centre sees the object (occlusion included)
+  cv::Mat surface;    // CV_8UC1 SurfaceId per pixel centre
 };
 
 // Shading: colour = 255 * albedo * (kAmbient + kDiffuse * max(0, n . l)), l toward a point
@@ -55,12 +92,17 @@ Eigen::Vector3d MarkerCenter(const Scene& scene);
 // The seed of frame `sequence`'s noise (a mix of both, so neighbouring frames are unrelated).
 std::uint64_t NoiseSeed(std::uint64_t seed, std::uint64_t sequence);
 
-// Renders the BGR frame (CV_8UC3, the rig's image size) at a plate angle. Pixels whose centre
-// ray result differs from a neighbour's are supersampled 4 x 4, so the silhouette's edge is
-// sub-pixel faithful (an edge pixel's level is the covered fraction's blend of object and
-// backdrop). Noise from cv::RNG seeded with NoiseSeed(settings.seed, sequence); none when
-// noise_sigma is 0.
-cv::Mat RenderFrame(const Scene& scene, const Rig& rig, double plate_angle_deg,
+// Renders the frame at a plate angle. Pixels whose centre sees another surface than a
+// neighbour's are supersampled 4 x 4, so every edge is sub-pixel faithful (an edge pixel's level
+// is the covered fractions' blend). Then blur (blur_sigma_px), then noise from cv::RNG seeded
+// with NoiseSeed(settings.seed, sequence) (none when noise_sigma is 0). `draw_object` false
+// renders the empty scene (the background frame).
+RenderOutput RenderScene(const Scene& scene, const SimProjection& projection,
+                         double plate_angle_deg, const RenderSettings& settings,
+                         std::uint64_t sequence, bool draw_object = true);
+
+// RenderScene(...).image.
+cv::Mat RenderFrame(const Scene& scene, const SimProjection& projection, double plate_angle_deg,
                     const RenderSettings& settings, std::uint64_t sequence);
 
 }  // namespace revolve::capture

@@ -274,9 +274,16 @@ int KeepLargestComponent(Mesh* mesh) {
   std::vector<int> new_index(vertex_count, -1);
   Mesh kept;
   const bool colors = mesh->HasColors();
-  for (const Eigen::Vector3i& f : mesh->faces) {
+  const bool uv_faces = mesh->uv_faces.size() == mesh->faces.size();
+  kept.uvs = mesh->uvs;
+  kept.texture = mesh->texture;
+  for (std::size_t i = 0; i < mesh->faces.size(); ++i) {
+    const Eigen::Vector3i& f = mesh->faces[i];
     if (sets.Find(f[0]) != best_root) {
       continue;
+    }
+    if (uv_faces) {
+      kept.uv_faces.push_back(mesh->uv_faces[i]);
     }
     Eigen::Vector3i g;
     for (int c = 0; c < 3; ++c) {

@@ -87,7 +87,8 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
                    const EdgeCrossings& crossings = {}, const MarchingCubesOptions& options = {});
 
 // Keeps the connected component (through shared vertices) with the most triangles and drops
-// unreferenced vertices (and their colours). Returns the number of components found.
+// unreferenced vertices (and their colours); `uv_faces` follow their faces (`uvs` are kept as
+// they are). Returns the number of components found.
 int KeepLargestComponent(Mesh* mesh);
 
 }  // namespace revolve::reconstruct

@@ -49,11 +49,21 @@ std::uint64_t BrickValidBits(const Eigen::Vector3i& brick, const Eigen::Vector3i
 }  // namespace
 
 struct VisualHull::Sat {
-  cv::Mat sum;  // CV_32S, (height + 1) x (width + 1)
-  int width = 0;
+  // CV_32S, (roi.height + 1) x (roi.width + 1): the table of the mask over `roi`, the bounding
+  // rectangle of its non-zero pixels (a fraction of the image: cheaper to build).
+  cv::Mat sum;
+  cv::Rect roi;
+  int width = 0;  // the image's
   int height = 0;
   // Mask pixels in the inclusive rectangle [u0, u1] x [v0, v1] (inside the image).
   std::int64_t Count(int u0, int v0, int u1, int v1) const {
+    u0 = std::max(u0, roi.x) - roi.x;
+    v0 = std::max(v0, roi.y) - roi.y;
+    u1 = std::min(u1, roi.x + roi.width - 1) - roi.x;
+    v1 = std::min(v1, roi.y + roi.height - 1) - roi.y;
+    if (u0 > u1 || v0 > v1) {
+      return 0;
+    }
     const int* top = sum.ptr<int>(v0);
     const int* bottom = sum.ptr<int>(v1 + 1);
     return std::int64_t{bottom[u1 + 1]} - top[u1 + 1] - bottom[u0] + top[u0];
@@ -122,6 +132,7 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
   ViewData data;
   data.pixel_from_object = view.pixel_from_object;
   cv::min(mask, 1, data.mask01);
+  data.roi = cv::boundingRect(data.mask01);
   return data;
 }
 
@@ -157,7 +168,10 @@ VisualHull::Sat VisualHull::MakeSat(const ViewData& view) {
   Sat sat;
   sat.width = view.mask01.cols;
   sat.height = view.mask01.rows;
-  cv::integral(view.mask01, sat.sum, CV_32S);
+  sat.roi = view.roi;
+  if (!sat.roi.empty()) {
+    cv::integral(view.mask01(sat.roi), sat.sum, CV_32S);
+  }
   return sat;
 }
 
@@ -284,7 +298,11 @@ void VisualHull::ClearBlock(int level, const Eigen::Vector3i& node) {
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i child = 2 * node + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
     if ((child.array() < child_dims.array()).all()) {
-      ClearBlock(level - 1, child);
+      if (level == 1) {
+        bricks_[BrickIndex(child)] = 0;  // the bricks themselves, without a call each
+      } else {
+        ClearBlock(level - 1, child);
+      }
     }
   }
 }
@@ -422,6 +440,13 @@ bool VisualHull::Contains(const Eigen::Vector3d& point_mm) const {
 
 Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
   BitVolume field(grid_.dims);
+  // With a clip plane, the first layer of samples kept (centres at or above the plane).
+  int k_min = 0;
+  if (options.clip_below_z_mm) {
+    const double k =
+        std::ceil((*options.clip_below_z_mm - grid_.origin_mm.z()) / grid_.voxel_mm - 0.5);
+    k_min = static_cast<int>(std::clamp(k, 0.0, static_cast<double>(grid_.dims.z())));
+  }
   for (int z = 0; z < brick_dims_.z(); ++z) {
     for (int y = 0; y < brick_dims_.y(); ++y) {
       for (int x = 0; x < brick_dims_.x(); ++x) {
@@ -430,6 +455,9 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
           continue;
         }
         for (int dz = 0; dz < kBrick; ++dz) {
+          if (z * kBrick + dz < k_min) {
+            continue;
+          }
           for (int dy = 0; dy < kBrick; ++dy) {
             const std::uint64_t nibble = (word >> ((dy << 2) | (dz << 4))) & 0xF;
             if (nibble == 0) {
@@ -444,9 +472,9 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
     }
   }
   EdgeCrossings crossings;
-  if (options.bisection_steps > 0) {
+  if (options.sub_voxel) {
     crossings = [this, &options](const std::vector<GridEdge>& edges) {
-      return PlaceOnEdges(edges, options.bisection_steps);
+      return PlaceOnEdges(edges, options.clip_below_z_mm, options.cull_views);
     };
   }
   MarchingCubesOptions mc;
@@ -454,115 +482,207 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
   return MarchingCubes(field, grid_.Centre(0, 0, 0), grid_.voxel_mm, crossings, mc);
 }
 
-std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges, int steps) const {
+double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& d, double t_max) {
+  const Matrix34d& p = view.pixel_from_object;
+  const Homogeneous ha = Project(p, a);
+  const Eigen::Vector3d hd(p(0, 0) * d.x() + p(0, 1) * d.y() + p(0, 2) * d.z(),
+                           p(1, 0) * d.x() + p(1, 1) * d.y() + p(1, 2) * d.z(),
+                           p(2, 0) * d.x() + p(2, 1) * d.y() + p(2, 2) * d.z());
+  const double wb = ha.w + t_max * hd.z();
+  const cv::Mat& mask = view.mask01;
+  if (!(ha.w > 0.0) || !(wb > 0.0)) {
+    // The segment reaches behind the camera (a camera inside the volume): fine sampling, then
+    // bisection between the last point that survives and the first that does not.
+    constexpr int kSamples = 256;
+    double last_good = 0.0;
+    for (int s = 1; s <= kSamples; ++s) {
+      const double t = t_max * s / kSamples;
+      const Eigen::Vector3d q = a + t * d;
+      const Homogeneous h = Project(p, q);
+      if (SurvivesProjected(view, h.x, h.y, h.w)) {
+        last_good = t;
+        continue;
+      }
+      double lo = last_good;
+      double hi = t;
+      for (int step = 0; step < 40; ++step) {
+        const double mid = 0.5 * (lo + hi);
+        const Homogeneous hm = Project(p, a + mid * d);
+        (SurvivesProjected(view, hm.x, hm.y, hm.w) ? lo : hi) = mid;
+      }
+      return hi;
+    }
+    return t_max + 1.0;
+  }
+  // In front all along: u(t) and v(t) are monotonic. Walk the nearest-pixel cells the
+  // projection crosses, in order; the borders are the half-integer lines.
+  const double ua = ha.x / ha.w;
+  const double va = ha.y / ha.w;
+  const double ub = (ha.x + t_max * hd.x()) / wb;
+  const double vb = (ha.y + t_max * hd.y()) / wb;
+  int iu = static_cast<int>(std::floor(ua + 0.5));
+  int iv = static_cast<int>(std::floor(va + 0.5));
+  const int end_u = static_cast<int>(std::floor(ub + 0.5));
+  const int end_v = static_cast<int>(std::floor(vb + 0.5));
+  // The walk stays in the rectangle of the end cells: when all of it is on the silhouette (or
+  // off the image), nothing on the segment is carved (the common case).
+  {
+    const int u0 = std::max(std::min(iu, end_u), 0);
+    const int u1 = std::min(std::max(iu, end_u), mask.cols - 1);
+    const int v0 = std::max(std::min(iv, end_v), 0);
+    const int v1 = std::min(std::max(iv, end_v), mask.rows - 1);
+    bool all_on = true;
+    for (int y = v0; y <= v1 && all_on; ++y) {
+      const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+      for (int x = u0; x <= u1; ++x) {
+        all_on = all_on && row[x] != 0;
+      }
+    }
+    if (all_on) {
+      return t_max + 1.0;
+    }
+  }
+  const int su = end_u > iu ? 1 : (end_u < iu ? -1 : 0);
+  const int sv = end_v > iv ? 1 : (end_v < iv ? -1 : 0);
+  // Parameter where the projection reaches the line u = c (or v = c): x(t) - c w(t) = 0.
+  auto cross = [&](double c, double x0, double dx) {
+    const double denominator = dx - c * hd.z();
+    return denominator != 0.0 ? (c * ha.w - x0) / denominator : t_max + 1.0;
+  };
+  double t = 0.0;
+  const int steps = std::abs(end_u - iu) + std::abs(end_v - iv);
+  for (int step = 0; step <= steps; ++step) {
+    if (iu >= 0 && iv >= 0 && iu < mask.cols && iv < mask.rows &&
+        mask.data[static_cast<std::size_t>(mask.step[0]) * iv + iu] == 0) {
+      return std::clamp(t, 0.0, t_max);
+    }
+    if (step == steps) {
+      break;
+    }
+    const double tu = su != 0 && iu != end_u ? cross(iu + 0.5 * su, ha.x, hd.x()) : t_max + 1.0;
+    const double tv = sv != 0 && iv != end_v ? cross(iv + 0.5 * sv, ha.y, hd.y()) : t_max + 1.0;
+    if (tu <= tv) {
+      iu += su;
+      t = std::max(t, tu);
+    } else {
+      iv += sv;
+      t = std::max(t, tv);
+    }
+  }
+  return t_max + 1.0;
+}
+
+std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
+                                             std::optional<double> clip_below_z_mm,
+                                             bool cull_views) const {
   const std::size_t n = edges.size();
   const int views = view_count();
-  // The part of each edge that can hold the crossing: all of it, or up to the grid's face for
-  // an edge leaving the grid.
-  auto segment = [&](const GridEdge& e, Eigen::Vector3d* a, Eigen::Vector3d* d, double* t_max) {
-    *a = grid_.Centre(e.inside.x(), e.inside.y(), e.inside.z());
-    *d = grid_.Centre(e.outside.x(), e.outside.y(), e.outside.z()) - *a;
-    const bool leaves =
-        ((e.outside.array() < 0) || (e.outside.array() >= grid_.dims.array())).any();
-    *t_max = leaves ? 0.5 : 1.0;
+  // Each edge with the part of it that can hold the crossing (all of it, or up to the grid's
+  // face for an edge leaving the grid, or up to the clip plane), sorted by the brick of its
+  // inside sample and the bricks by their block of 4 x 4 x 4 bricks: per view, a block the view
+  // cannot act on (grown by one voxel, it contains every segment of its bricks) skips its
+  // bricks, a brick skips its edges, and the edges of a brick lie together in memory.
+  struct Item {
+    std::uint64_t key;  // block, then brick within the block
+    Eigen::Vector3i inside;
+    std::int8_t axis;
+    std::int8_t sign;
+    std::uint32_t edge;
+    double t_max;
   };
-
-  // relevant[e * words + v / 64] bit v: view v may reject some point of edge e's segment. The
-  // others accept all of it, so testing only these equals testing every view. Found per view
-  // in two steps: the bricks holding the edges' inside samples, grown by one voxel (they
-  // contain the segments), then the segments of the bricks the view may act on.
-  std::vector<std::int64_t> brick_of_edge(n);
-  std::vector<std::int64_t> bricks;
+  std::vector<Item> items(n);
+  const Eigen::Vector3i block_dims = (brick_dims_ + Eigen::Vector3i::Constant(3)) / 4;
   for (std::size_t e = 0; e < n; ++e) {
-    brick_of_edge[e] = BrickIndex(edges[e].inside / kBrick);
+    const GridEdge& edge = edges[e];
+    Item& item = items[e];
+    item.inside = edge.inside;
+    const Eigen::Vector3i step = edge.outside - edge.inside;
+    item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
+    item.sign = static_cast<std::int8_t>(step[item.axis]);
+    item.edge = static_cast<std::uint32_t>(e);
+    const bool leaves =
+        ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
+    item.t_max = leaves ? 0.5 : 1.0;
+    if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
+      const double z = grid_.Centre(0, 0, edge.inside.z()).z();
+      const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
+      if (to_plane >= 0.0 && to_plane < item.t_max) {
+        item.t_max = to_plane;
+      }
+    }
+    const Eigen::Vector3i brick = edge.inside.cwiseMax(0) / kBrick;
+    const Eigen::Vector3i block = brick / 4;
+    const Eigen::Vector3i local = brick - 4 * block;
+    item.key =
+        static_cast<std::uint64_t>(
+            (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x())
+            << 6 |
+        static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4);
   }
-  bricks = brick_of_edge;
-  std::sort(bricks.begin(), bricks.end());
-  bricks.erase(std::unique(bricks.begin(), bricks.end()), bricks.end());
-  for (std::int64_t& b : brick_of_edge) {
-    b = std::lower_bound(bricks.begin(), bricks.end(), b) - bricks.begin();
+  std::sort(items.begin(), items.end(), [](const Item& x, const Item& y) { return x.key < y.key; });
+
+  struct Group {
+    std::size_t begin, end;  // items (a brick) or bricks (a block)
+    Eigen::Vector3d corners[8];
+  };
+  auto grown_box = [&](const Eigen::Vector3i& lo_voxel, int size, Group* g) {
+    const Eigen::Vector3i lo = lo_voxel - Eigen::Vector3i::Ones();
+    const Eigen::Vector3i hi = lo_voxel + Eigen::Vector3i::Constant(size);
+    const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
+    const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
+    for (int c = 0; c < 8; ++c) {
+      g->corners[c] =
+          Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
+    }
+  };
+  std::vector<Group> bricks;
+  std::vector<Group> blocks;
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i;
+    while (j < n && items[j].key == items[i].key) ++j;
+    const Eigen::Vector3i brick = items[i].inside.cwiseMax(0) / kBrick;
+    if (blocks.empty() || (items[bricks.back().begin].key >> 6) != (items[i].key >> 6)) {
+      Group& block = blocks.emplace_back();
+      block.begin = bricks.size();
+      grown_box(brick / 4 * (4 * kBrick), 4 * kBrick, &block);
+    }
+    Group& g = bricks.emplace_back();
+    g.begin = i;
+    g.end = j;
+    grown_box(brick * kBrick, kBrick, &g);
+    blocks.back().end = bricks.size();
+    i = j;
   }
-  std::vector<Eigen::Vector3d> brick_lo(bricks.size());
-  std::vector<Eigen::Vector3d> brick_hi(bricks.size());
-  for (std::size_t b = 0; b < bricks.size(); ++b) {
-    const std::int64_t plane = std::int64_t{brick_dims_.x()} * brick_dims_.y();
-    const Eigen::Vector3i brick(static_cast<int>(bricks[b] % brick_dims_.x()),
-                                static_cast<int>((bricks[b] / brick_dims_.x()) % brick_dims_.y()),
-                                static_cast<int>(bricks[b] / plane));
-    const Eigen::Vector3i lo = brick * kBrick - Eigen::Vector3i::Ones();
-    const Eigen::Vector3i hi = brick * kBrick + Eigen::Vector3i::Constant(kBrick);
-    brick_lo[b] = grid_.Centre(lo.x(), lo.y(), lo.z());
-    brick_hi[b] = grid_.Centre(hi.x(), hi.y(), hi.z());
-  }
-  const int words = (views + 63) / 64;
-  std::vector<std::uint64_t> relevant(n * words, 0);
-  std::vector<std::uint8_t> brick_relevant(bricks.size());
+
+  std::vector<double> t_item(n);
+  for (std::size_t k = 0; k < n; ++k) t_item[k] = items[k].t_max + 1.0;
   for (int v = 0; v < views; ++v) {
     const ViewData& view = views_[v];
     const Sat sat = MakeSat(view);
-    for (std::size_t b = 0; b < bricks.size(); ++b) {
-      Eigen::Vector3d corners[8];
-      for (int c = 0; c < 8; ++c) {
-        corners[c] = Eigen::Vector3d(c & 1 ? brick_hi[b].x() : brick_lo[b].x(),
-                                     c & 2 ? brick_hi[b].y() : brick_lo[b].y(),
-                                     c & 4 ? brick_hi[b].z() : brick_lo[b].z());
-      }
-      brick_relevant[b] = ClassifyHull(view, sat, corners, 8) != BlockClass::kUnaffected;
-    }
-    for (std::size_t e = 0; e < n; ++e) {
-      if (!brick_relevant[brick_of_edge[e]]) {
+    for (const Group& block : blocks) {
+      if (cull_views && ClassifyHull(view, sat, block.corners, 8) == BlockClass::kUnaffected) {
         continue;
       }
-      Eigen::Vector3d ends[2];
-      Eigen::Vector3d d;
-      double t_max = 1.0;
-      segment(edges[e], &ends[0], &d, &t_max);
-      ends[1] = ends[0] + t_max * d;
-      if (ClassifyHull(view, sat, ends, 2) != BlockClass::kUnaffected) {
-        relevant[e * words + v / 64] |= std::uint64_t{1} << (v % 64);
-      }
-    }
-  }
-
-  std::vector<double> t(n, 0.5);
-  std::vector<const ViewData*> tests;
-  for (std::size_t e = 0; e < n; ++e) {
-    tests.clear();
-    for (int w = 0; w < words; ++w) {
-      for (std::uint64_t bits = relevant[e * words + w]; bits != 0; bits &= bits - 1) {
-        tests.push_back(&views_[w * 64 + std::countr_zero(bits)]);
-      }
-    }
-    // Move-to-front: the view that rejected the last point usually rejects the next one.
-    auto survives = [&](const Eigen::Vector3d& p) {
-      for (std::size_t i = 0; i < tests.size(); ++i) {
-        if (!PointSurvives(*tests[i], p)) {
-          std::swap(tests[0], tests[i]);
-          return false;
+      for (std::size_t b = block.begin; b < block.end; ++b) {
+        const Group& brick = bricks[b];
+        if (cull_views && ClassifyHull(view, sat, brick.corners, 8) == BlockClass::kUnaffected) {
+          continue;
+        }
+        for (std::size_t k = brick.begin; k < brick.end; ++k) {
+          const Item& item = items[k];
+          const Eigen::Vector3d a = grid_.Centre(item.inside.x(), item.inside.y(), item.inside.z());
+          Eigen::Vector3d d = Eigen::Vector3d::Zero();
+          d[item.axis] = item.sign * grid_.voxel_mm;
+          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, item.t_max));
         }
       }
-      return true;
-    };
-    Eigen::Vector3d a, d;
-    double t_max = 1.0;
-    segment(edges[e], &a, &d, &t_max);
-    // An edge leaving the grid: the surface is the grid's face unless a silhouette cuts sooner.
-    if (t_max < 1.0 && survives(a + t_max * d)) {
-      t[e] = t_max;
-      continue;
     }
-    double lo = 0.0;
-    double hi = t_max;
-    for (int s = 0; s < steps; ++s) {
-      const double mid = 0.5 * (lo + hi);
-      if (survives(a + mid * d)) {
-        lo = mid;
-      } else {
-        hi = mid;
-      }
-    }
-    t[e] = 0.5 * (lo + hi);
   }
+  // No view cuts the segment: its end (the grid's face, the plane, or rounding for an edge
+  // inside the grid, whose outside sample some view carved).
+  std::vector<double> t(n);
+  for (std::size_t k = 0; k < n; ++k) t[items[k].edge] = std::min(t_item[k], items[k].t_max);
   return t;
 }
 

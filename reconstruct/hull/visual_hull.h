@@ -26,6 +26,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -63,10 +64,17 @@ struct VoxelGrid {
 };
 
 struct HullSurfaceOptions {
-  // Bisection steps that place each vertex on its grid edge against the silhouettes (each
-  // halves the uncertainty: 10 steps = voxel / 1024). 0 puts vertices at edge midpoints.
-  int bisection_steps = 10;
+  // Each vertex at the exact crossing of its grid edge with the silhouette cones (true), or at
+  // the edge's midpoint (false).
+  bool sub_voxel = true;
   bool keep_largest_component = true;
+  // The table plane: voxels whose centre lies below z = clip_below_z_mm are left out, and the
+  // edges that reach below it are cut on the plane unless a silhouette cuts them sooner, so the
+  // model's base is flat and closed there.
+  std::optional<double> clip_below_z_mm;
+  // The reference for tests and benchmarks: false walks every edge in every view instead of
+  // only in the views whose silhouette boundary can cross it (same result, far slower).
+  bool cull_views = true;
 };
 
 class VisualHull {
@@ -98,20 +106,25 @@ class VisualHull {
   bool SurvivesAllViews(const Eigen::Vector3d& point_mm) const;
 
   // Marching cubes over the occupancy (samples at voxel centres, outside the grid empty), each
-  // vertex placed on its grid edge by bisection against Contains (only the views whose
-  // silhouette boundary can cross the edge's projection are tested: the same summed-area test
-  // as carving, so the result is that of testing every view). An edge leaving the grid is cut
-  // at the grid's face unless the silhouettes cut it sooner, so the base on the plate is flat.
-  // The mesh is watertight, 2-manifold and outward-oriented
-  // (reconstruct/hull/marching_cubes.h). Empty when no voxel is occupied.
+  // vertex placed on its grid edge where the edge, walked from its inside sample, first leaves
+  // the continuous hull: per view, the edge's projection is walked pixel by pixel (the pixels'
+  // borders are where the point test's nearest pixel changes) up to the first pixel off the
+  // silhouette, found in closed form; the vertex takes the nearest of these over the views.
+  // Only the views whose silhouette boundary can cross the edge's projection are walked (the
+  // same summed-area test as carving, first on blocks of 16 voxels, then on bricks), so the
+  // result is that of walking every view. An edge leaving the grid (or reaching below
+  // clip_below_z_mm) is cut at the grid's face (the plane) unless the silhouettes cut it
+  // sooner, so the base on the plate is flat. The mesh is watertight, 2-manifold and
+  // outward-oriented (reconstruct/hull/marching_cubes.h). Empty when no voxel is occupied.
   Mesh ExtractSurface(const HullSurfaceOptions& options = {}) const;
 
  private:
   struct ViewData {
     Matrix34d pixel_from_object;
     cv::Mat mask01;  // CV_8UC1, 0 or 1
+    cv::Rect roi;    // bounding rectangle of the non-zero pixels
   };
-  struct Sat;  // per-view summed-area table, lives only during Integrate
+  struct Sat;  // per-view summed-area table, lives only during Integrate or ExtractSurface
   enum class BlockClass { kUnaffected, kCarve, kMixed };
 
   Expected<ViewData> Prepare(const cv::Mat& mask, const View& view) const;
@@ -126,8 +139,13 @@ class VisualHull {
   // How `view` acts on the convex hull of `points` (kUnaffected: on none of its points).
   static BlockClass ClassifyHull(const ViewData& view, const Sat& sat,
                                  const Eigen::Vector3d* points, int count);
-  // Bisection of every cut edge against the silhouettes (see ExtractSurface).
-  std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges, int steps) const;
+  // Where every cut edge first leaves the hull (see ExtractSurface).
+  std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges,
+                                   std::optional<double> clip_below_z_mm, bool cull_views) const;
+  // The first t in [0, t_max] where a + t d leaves `view`'s silhouette; t_max + 1 when it
+  // does not (a is expected to survive the view).
+  static double FirstExit(const ViewData& view, const Eigen::Vector3d& a, const Eigen::Vector3d& d,
+                          double t_max);
   // Returns whether the block still holds occupied voxels.
   bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node);
   void ClearBlock(int level, const Eigen::Vector3i& node);

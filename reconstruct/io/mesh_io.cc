@@ -1,9 +1,5 @@
 #include "reconstruct/io/mesh_io.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <bit>
 #include <cerrno>
@@ -17,6 +13,8 @@
 
 #include <fmt/format.h>
 
+#include "reconstruct/io/atomic_file.h"
+
 namespace revolve::reconstruct {
 namespace {
 
@@ -25,144 +23,9 @@ namespace fs = std::filesystem;
 static_assert(std::endian::native == std::endian::little,
               "the PLY writer and reader assume a little-endian host");
 
-// An open file descriptor (RAII).
-class UniqueFd {
- public:
-  explicit UniqueFd(int fd = -1) : fd_(fd) {}
-  UniqueFd(const UniqueFd&) = delete;
-  UniqueFd& operator=(const UniqueFd&) = delete;
-  ~UniqueFd() { Reset(); }
-  int get() const { return fd_; }
-  void Reset(int fd = -1) {
-    if (fd_ >= 0) {
-      ::close(fd_);
-    }
-    fd_ = fd;
-  }
-  // Closes now and reports close(2)'s errno (0 on success).
-  int Close() {
-    int err = 0;
-    if (fd_ >= 0 && ::close(fd_) != 0) {
-      err = errno;
-    }
-    fd_ = -1;
-    return err;
-  }
-
- private:
-  int fd_;
-};
-
-Error IoError(const fs::path& path, std::string_view what, int err) {
-  return Error{ErrorCode::kIo, fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
-}
-
-// Buffered writer to a temporary file that becomes `path` on Commit.
-class AtomicFile {
- public:
-  explicit AtomicFile(fs::path path) : path_(std::move(path)) {}
-  AtomicFile(const AtomicFile&) = delete;
-  AtomicFile& operator=(const AtomicFile&) = delete;
-  ~AtomicFile() {
-    if (!temp_.empty()) {
-      fd_.Close();
-      ::unlink(temp_.c_str());
-    }
-  }
-
-  Expected<void> Open() {
-    fs::path dir = path_.parent_path();
-    if (dir.empty()) {
-      dir = ".";
-    }
-    std::string name = (dir / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
-    const int fd = ::mkstemp(name.data());
-    if (fd < 0) {
-      return std::unexpected(IoError(path_, "cannot create the file", errno));
-    }
-    fd_.Reset(fd);
-    temp_ = name;
-    ::fchmod(fd, 0644);
-    buffer_.reserve(kBufferSize);
-    return {};
-  }
-
-  void Append(std::string_view bytes) {
-    buffer_.append(bytes);
-    if (buffer_.size() >= kBufferSize) {
-      Flush();
-    }
-  }
-  template <class T>
-  void AppendRaw(const T& value) {
-    Append(std::string_view(reinterpret_cast<const char*>(&value), sizeof(T)));
-  }
-
-  Expected<void> Commit() {
-    Flush();
-    if (write_errno_ != 0) {
-      return std::unexpected(IoError(path_, "cannot write", write_errno_));
-    }
-    if (::fsync(fd_.get()) != 0) {
-      return std::unexpected(IoError(path_, "cannot sync", errno));
-    }
-    if (const int err = fd_.Close(); err != 0) {
-      return std::unexpected(IoError(path_, "cannot close", err));
-    }
-    if (::rename(temp_.c_str(), path_.c_str()) != 0) {
-      return std::unexpected(IoError(path_, "cannot rename the finished file into place", errno));
-    }
-    temp_.clear();
-    // Make the rename itself durable.
-    fs::path dir = path_.parent_path();
-    if (dir.empty()) {
-      dir = ".";
-    }
-    UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-    if (dir_fd.get() >= 0) {
-      ::fsync(dir_fd.get());
-    }
-    return {};
-  }
-
- private:
-  static constexpr std::size_t kBufferSize = 1 << 20;
-
-  void Flush() {
-    std::size_t done = 0;
-    while (write_errno_ == 0 && done < buffer_.size()) {
-      const ssize_t n = ::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
-      if (n < 0) {
-        if (errno == EINTR) {
-          continue;
-        }
-        write_errno_ = errno;
-      } else {
-        done += static_cast<std::size_t>(n);
-      }
-    }
-    buffer_.clear();
-  }
-
-  fs::path path_;
-  std::string temp_;
-  UniqueFd fd_;
-  std::string buffer_;
-  int write_errno_ = 0;
-};
-
-// Shortest text that reads back as the same float.
-void AppendFloat(std::string* out, float value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  out->append(buffer, result.ptr);
-}
-
-void AppendInt(std::string* out, long long value) {
-  char buffer[24];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  out->append(buffer, result.ptr);
-}
+using internal::AppendFixed;
+using internal::AppendInt;
+using internal::AtomicFile;
 
 Expected<std::string> ReadWholeFile(const fs::path& path) {
   std::error_code ec;
@@ -479,11 +342,11 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
   text.clear();
   for (const Eigen::Vector3f& v : mesh.vertices) {
     text += "        ";
-    AppendFloat(&text, v.x());
+    AppendFixed(&text, v.x(), 4);
     text += ' ';
-    AppendFloat(&text, v.y());
+    AppendFixed(&text, v.y(), 4);
     text += ' ';
-    AppendFloat(&text, v.z());
+    AppendFixed(&text, v.z(), 4);
     text += ",\n";
     if (text.size() > (1 << 16)) {
       file.Append(text);
@@ -499,7 +362,7 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
         if (k > 0) {
           text += ' ';
         }
-        AppendFloat(&text, static_cast<float>(c[k] / 255.0));
+        AppendFixed(&text, static_cast<float>(c[k] / 255.0), 4);
       }
       text += ",\n";
       if (text.size() > (1 << 16)) {
@@ -527,14 +390,32 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
   return file.Commit();
 }
 
+bool IsModelFormat(std::string_view format) {
+  return std::find(std::begin(kModelFormats), std::end(kModelFormats), format) !=
+         std::end(kModelFormats);
+}
+
 Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir,
                                            std::string_view basename,
                                            const std::vector<std::string>& formats) {
   for (const std::string& format : formats) {
-    if (format != "ply" && format != "wrl") {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("unknown model format \"{}\" (expected ply or wrl)", format));
+    if (!IsModelFormat(format)) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("unknown model format \"{}\" (expected ply, obj, stl, glb or wrl)", format));
     }
+  }
+  // The texture is encoded once for every format that embeds or references it.
+  std::string png;
+  const bool needs_png = mesh.HasTexture() &&
+                         std::any_of(formats.begin(), formats.end(),
+                                     [](const std::string& f) { return f == "obj" || f == "glb"; });
+  if (needs_png) {
+    Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+    if (!encoded) {
+      return std::unexpected(encoded.error());
+    }
+    png = std::move(*encoded);
   }
   std::vector<fs::path> written;
   for (const std::string& format : formats) {
@@ -542,11 +423,28 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
     if (std::find(written.begin(), written.end(), path) != written.end()) {
       continue;
     }
-    Expected<void> result = format == "ply" ? WritePly(mesh, path) : WriteVrml(mesh, path);
+    Expected<void> result;
+    if (format == "ply") {
+      result = WritePly(mesh, path);
+    } else if (format == "wrl") {
+      result = WriteVrml(mesh, path);
+    } else if (format == "stl") {
+      result = WriteStl(mesh, path);
+    } else if (format == "glb") {
+      result = internal::WriteGlb(mesh, path, needs_png ? &png : nullptr);
+    } else {
+      result = internal::WriteObj(mesh, path, needs_png ? &png : nullptr);
+    }
     if (!result) {
       return std::unexpected(result.error());
     }
     written.push_back(path);
+    if (format == "obj") {
+      written.push_back(fs::path(path).replace_extension(".mtl"));
+      if (mesh.HasTexture()) {
+        written.push_back(fs::path(path).replace_extension(".png"));
+      }
+    }
   }
   return written;
 }

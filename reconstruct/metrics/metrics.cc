@@ -189,4 +189,21 @@ SphereFit FitSphere(const Mesh& mesh) {
   return fit;
 }
 
+double Psnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  if (a.size() != b.size() || a.type() != b.type() || a.depth() != CV_8U ||
+      mask.size() != a.size() || mask.type() != CV_8UC1) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  const int pixels = cv::countNonZero(mask);
+  if (pixels == 0) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  const double sse = std::pow(cv::norm(a, b, cv::NORM_L2, mask), 2.0);
+  if (sse == 0.0) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const double mse = sse / (static_cast<double>(pixels) * a.channels());
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
 }  // namespace revolve::reconstruct

@@ -5,6 +5,7 @@
 #include <functional>
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 
 #include "reconstruct/mesh.h"
 
@@ -58,5 +59,11 @@ struct SphereFit {
 
 // Linear least-squares sphere through the mesh's vertices (|p|^2 = 2 c.p + d).
 SphereFit FitSphere(const Mesh& mesh);
+
+// Peak signal-to-noise ratio (dB, peak 255) between two images of the same size and type
+// (8-bit, any channel count) over the pixels where `mask` (CV_8UC1) is non-zero:
+// 10 log10(255^2 / MSE), the MSE taken over every channel. Infinity when they are equal there,
+// NaN when the mask is empty or the images do not match.
+double Psnr(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
 
 }  // namespace revolve::reconstruct

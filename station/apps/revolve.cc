@@ -6,6 +6,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include "station/apps/camera_commands.h"
+#include "station/apps/station_commands.h"
+#include "station/apps/turntable_commands.h"
 #include "station/scan_command.h"
 
 namespace {
@@ -47,6 +50,12 @@ int main(int argc, char** argv) {
   scan->add_option("--out", scan_options.out,
                    "Scan folder to create (must not exist or be empty); default: scans/<id>");
 
+  auto turntable_commands = revolve::station::AddTurntableCommands(app);
+  auto station_commands = revolve::station::AddStationCommands(app);
+  scan->add_option("--recipe", scan_options.recipe,
+                   "Recipe of the config (default: [station] recipe)");
+  auto camera_commands = revolve::station::AddCameraCommands(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -54,6 +63,9 @@ int main(int argc, char** argv) {
   }
 
   SignalStop signals;
+  if (auto code = turntable_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
+  if (auto code = station_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
+  if (auto code = camera_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (scan->parsed()) {
     return revolve::station::RunScanCommand(scan_options, signals.token(), std::cout, std::cerr);
   }

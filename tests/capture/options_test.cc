@@ -136,10 +136,110 @@ TEST(CameraOptions, OutOfRangeAndMistypedValuesAreErrors) {
 }
 
 TEST(CameraOptions, BackendsThisBuildLacksAreErrors) {
-  const std::string message = ErrorOf(ParseCamera("[camera]\nbackend = \"v4l2\"\n"));
+  const std::string message = ErrorOf(ParseCamera("[camera]\nbackend = \"kinect\"\n"));
   EXPECT_NE(message.find("test.toml:2:"), std::string::npos) << message;
   EXPECT_NE(message.find("camera.backend"), std::string::npos) << message;
   EXPECT_NE(message.find("synthetic"), std::string::npos) << message;
+}
+
+TEST(CameraOptions, ReadsTheOtherBackendsTables) {
+  auto options = ParseCamera(R"(
+[camera]
+backend = "replay"
+[camera.replay]
+dir = "frames"
+pattern = "bw_shoe{angle}.tif"
+step_deg = 10.0
+order = "sequence"
+[camera.v4l2]
+device = "/dev/v4l/by-id/usb-Logitech_C920-video-index0"
+width_px = 1920
+height_px = 1080
+pixel_formats = ["MJPG", "YUYV"]
+exposure_us = 20000
+white_balance_k = 4500
+focus = 0
+power_line_hz = 50
+[camera.libcamera]
+width_px = 2028
+height_px = 1520
+colour_gains = [1.8, 1.5]
+[camera.synthetic]
+projection = "orthographic"
+axis_offset_px = 12.5
+object = "torus"
+radius_mm = 40
+height_mm = 20
+backdrop_bgr = [40, 170, 40]
+plate_radius_mm = 60
+fixture_mm = [80, -5, 0, 90, 5, 60]
+blur_sigma_px = 1.5
+)");
+  ASSERT_TRUE(options.has_value()) << options.error().ToString();
+  EXPECT_EQ(options->backend, "replay");
+  // A relative dir is taken from the config file's folder ("test.toml" has none).
+  EXPECT_EQ(options->replay.dir, "frames");
+  EXPECT_EQ(options->replay.pattern, "bw_shoe{angle}.tif");
+  EXPECT_EQ(options->replay.order, "sequence");
+  EXPECT_EQ(options->v4l2.pixel_formats, (std::vector<std::string>{"MJPG", "YUYV"}));
+  EXPECT_EQ(options->v4l2.exposure_us, 20000.0);
+  EXPECT_EQ(options->v4l2.power_line_hz, 50);
+  EXPECT_EQ(options->libcamera.colour_gains.size(), 2u);
+  EXPECT_EQ(options->synthetic.projection, "orthographic");
+  EXPECT_EQ(options->synthetic.object, "torus");
+  EXPECT_EQ(options->synthetic.fixture_mm.size(), 6u);
+
+  const std::pair<std::string, std::string> cases[] = {
+      {"[camera.replay]\npattern = \"shoe.tif\"", "camera.replay.pattern"},
+      {"[camera.replay]\norder = \"random\"", "camera.replay.order"},
+      {"[camera.v4l2]\npixel_formats = [\"YUV\"]", "camera.v4l2.pixel_formats"},
+      {"[camera.v4l2]\npower_line_hz = 55", "camera.v4l2.power_line_hz"},
+      {"[camera.v4l2]\nexpose_us = 5", "camera.v4l2.expose_us"},
+      {"[camera.synthetic]\nprojection = \"fisheye\"", "camera.synthetic.projection"},
+      {"[camera.synthetic]\nbackdrop_bgr = [1, 2]", "camera.synthetic.backdrop_bgr"},
+      {"[camera.synthetic]\nfixture_mm = [1, 2, 3]", "camera.synthetic.fixture_mm"},
+      {"[camera.synthetic]\nobject = \"mesh\"", "camera.synthetic.mesh_path"},
+      {"[camera.synthetic]\nobject = \"torus\"\nradius_mm = 10\nheight_mm = 30",
+       "camera.synthetic.object"},
+  };
+  for (const auto& [text, key] : cases) {
+    const std::string message = ErrorOf(ParseCamera(text + "\n"));
+    EXPECT_NE(message.find(key), std::string::npos) << text << " -> " << message;
+    EXPECT_NE(message.find("test.toml:"), std::string::npos) << message;
+  }
+}
+
+TEST(SegmentOptions, ReadsTheNewKeys) {
+  auto options = ParseSegment(R"(
+[segment]
+method = "chroma"
+chroma_key_bgr = [40, 170, 40]
+chroma_fraction = 0.4
+roi_px = [0, 0, 768, 500]
+roi_polygon_px = [0, 0, 768, 0, 768, 480, 0, 480]
+exclude_px = [700, 100, 760, 400, 10, 10, 20, 20]
+fill_holes = false
+max_hole_area_px = 500
+)");
+  ASSERT_TRUE(options.has_value()) << options.error().ToString();
+  EXPECT_EQ(options->method, "chroma");
+  EXPECT_EQ(options->roi_px, (std::vector<int>{0, 0, 768, 500}));
+  EXPECT_EQ(options->exclude_px.size(), 8u);
+  EXPECT_FALSE(options->fill_holes);
+  const std::pair<std::string, std::string> cases[] = {
+      {"roi_px = [0, 0, 10]", "segment.roi_px"},
+      {"roi_px = [10, 0, 5, 5]", "segment.roi_px"},
+      {"exclude_px = [1, 2, 3, 4, 5]", "segment.exclude_px"},
+      {"roi_polygon_px = [1, 2, 3, 4]", "segment.roi_polygon_px"},
+      {"chroma_key_bgr = [1, 2]", "segment.chroma_key_bgr"},
+      {"backdrop = \"grey\"", "segment.backdrop"},
+      {"roi_px = [0.5, 0, 10, 10]", "segment.roi_px"},
+  };
+  for (const auto& [line, key] : cases) {
+    const std::string message = ErrorOf(ParseSegment("[segment]\n" + line + "\n"));
+    EXPECT_NE(message.find(key), std::string::npos) << line << " -> " << message;
+    EXPECT_NE(message.find("test.toml:2:"), std::string::npos) << message;
+  }
 }
 
 TEST(SegmentOptions, ReadsEveryKeyAndChecksRanges) {

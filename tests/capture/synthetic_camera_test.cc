@@ -275,7 +275,7 @@ TEST(Capture, FactoryMakesTheSyntheticCameraOnly) {
   auto camera = Create(options, std::make_shared<SimulatedPlate>());
   ASSERT_TRUE(camera.has_value());
   EXPECT_TRUE((*camera)->KnownRig().has_value());
-  options.backend = "v4l2";
+  options.backend = "kinect";
   auto error = Create(options, std::make_shared<SimulatedPlate>()).error();
   EXPECT_EQ(error.code, ErrorCode::kUnsupported);
   EXPECT_NE(error.message.find("[camera].backend"), std::string::npos) << error.message;

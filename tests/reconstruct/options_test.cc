@@ -29,6 +29,22 @@ TEST(ReconstructOptions, ParsesAGoodSection) {
   EXPECT_EQ(options->formats, (std::vector<std::string>{"wrl", "ply"}));
 }
 
+TEST(ReconstructOptions, ParsesFormatsTextureAndBottom) {
+  const Expected<ReconstructOptions> options = ParseText(
+      "[reconstruct]\nformats = [\"glb\", \"obj\", \"stl\", \"ply\", \"wrl\", \"obj\"]\n"
+      "texture = false\ntexture_size_px = 1024\nflat_bottom = false\n");
+  ASSERT_TRUE(options.has_value()) << options.error().ToString();
+  EXPECT_EQ(options->formats, (std::vector<std::string>{"glb", "obj", "stl", "ply", "wrl"}));
+  EXPECT_FALSE(options->texture);
+  EXPECT_EQ(options->texture_size_px, 1024);
+  EXPECT_FALSE(options->flat_bottom);
+  const Expected<ReconstructOptions> defaults = ParseText("[reconstruct]\n");
+  ASSERT_TRUE(defaults.has_value());
+  EXPECT_TRUE(defaults->texture);
+  EXPECT_EQ(defaults->texture_size_px, 4096);
+  EXPECT_TRUE(defaults->flat_bottom);
+}
+
 TEST(ReconstructOptions, DefaultsMatchTheEmbeddedConfig) {
   const Expected<ReconstructOptions> absent = ParseText("[scan]\nstops = 36\n");
   ASSERT_TRUE(absent.has_value());
@@ -46,6 +62,9 @@ TEST(ReconstructOptions, DefaultsMatchTheEmbeddedConfig) {
   const Expected<ReconstructOptions> embedded = ParseOptions(*section);
   ASSERT_TRUE(embedded.has_value()) << embedded.error().ToString();
   EXPECT_EQ(embedded->method, "hull");
+  EXPECT_EQ(embedded->formats, defaults.formats);
+  EXPECT_EQ(embedded->texture, defaults.texture);
+  EXPECT_EQ(embedded->flat_bottom, defaults.flat_bottom);
 }
 
 TEST(ReconstructOptions, RejectsAnUnknownKey) {
@@ -68,8 +87,13 @@ TEST(ReconstructOptions, RejectsBadValues) {
                         Case{"resolution = 64.5", "reconstruct.resolution"},
                         Case{"volume_radius_mm = 0", "reconstruct.volume_radius_mm"},
                         Case{"volume_height_mm = -5", "reconstruct.volume_height_mm"},
-                        Case{"method = \"meridian\"", "reconstruct.method"},
-                        Case{"formats = [\"ply\", \"obj\"]", "reconstruct.formats"},
+                        Case{"method = \"voxels\"", "reconstruct.method"},
+                        Case{"meridian_row_step_px = 0", "reconstruct.meridian_row_step_px"},
+                        Case{"formats = [\"ply\", \"fbx\"]", "reconstruct.formats"},
+                        Case{"texture = 1", "reconstruct.texture"},
+                        Case{"texture_size_px = 32", "reconstruct.texture_size_px"},
+                        Case{"texture_size_px = 20000", "reconstruct.texture_size_px"},
+                        Case{"flat_bottom = \"yes\"", "reconstruct.flat_bottom"},
                         Case{"formats = []", "reconstruct.formats"},
                         Case{"formats = \"ply\"", "reconstruct.formats"}}) {
     const Expected<ReconstructOptions> options =
@@ -86,6 +110,8 @@ TEST(ReconstructOptions, CreateValidates) {
   ReconstructOptions options;
   EXPECT_TRUE(Create(options).has_value());
   options.method = "meridian";
+  EXPECT_TRUE(Create(options).has_value());
+  options.method = "voxels";
   EXPECT_EQ(Create(options).error().code, ErrorCode::kBadInput);
   options = ReconstructOptions{};
   options.resolution = 4;

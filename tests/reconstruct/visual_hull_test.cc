@@ -288,9 +288,10 @@ TEST(VisualHull, SurfaceIsClosedAndLiesWithinTheGrid) {
   EXPECT_NEAR(stats.bbox_min_mm.z(), 0.0, 1e-6);
 }
 
-TEST(VisualHull, SurfaceVerticesEqualBruteForceBisection) {
-  // ExtractSurface tests only the views that can cut each edge; bisecting against every view
-  // must place every vertex at the same position.
+TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExit) {
+  // ExtractSurface walks only the views that can cut each edge, in closed form; sampling every
+  // edge finely against every view, then bisecting the first step that leaves the hull, must
+  // place every vertex at the same position (to the bisection's precision).
   const Rig rig = StationRig();
   const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 40);
   VisualHull hull(grid);
@@ -298,46 +299,66 @@ TEST(VisualHull, SurfaceVerticesEqualBruteForceBisection) {
   for (double angle : {0.0, 35.0, 70.0, 105.0, 140.0, 175.0, 210.0}) {
     ASSERT_TRUE(hull.Integrate(IrregularMask(rig, angle, &rng), ViewOf(rig, angle)).has_value());
   }
-  HullSurfaceOptions options;
-  options.keep_largest_component = false;
-  const Mesh mesh = hull.ExtractSurface(options);
+  for (const bool clip : {false, true}) {
+    SCOPED_TRACE(clip ? "clipped at z = 10.3 mm" : "not clipped");
+    HullSurfaceOptions options;
+    options.keep_largest_component = false;
+    if (clip) options.clip_below_z_mm = 10.3;
+    const Mesh mesh = hull.ExtractSurface(options);
 
-  BitVolume field(grid.dims);
-  for (int k = 0; k < grid.dims.z(); ++k) {
-    for (int j = 0; j < grid.dims.y(); ++j) {
-      for (int i = 0; i < grid.dims.x(); ++i) field.Set(i, j, k, hull.Occupied(i, j, k));
+    BitVolume field(grid.dims);
+    for (int k = 0; k < grid.dims.z(); ++k) {
+      for (int j = 0; j < grid.dims.y(); ++j) {
+        for (int i = 0; i < grid.dims.x(); ++i) {
+          field.Set(i, j, k, hull.Occupied(i, j, k) && (!clip || grid.Centre(i, j, k).z() >= 10.3));
+        }
+      }
+    }
+    const EdgeCrossings brute_force = [&](const std::vector<GridEdge>& edges) {
+      std::vector<double> ts;
+      for (const GridEdge& e : edges) {
+        const Eigen::Vector3d a = grid.Centre(e.inside.x(), e.inside.y(), e.inside.z());
+        const Eigen::Vector3d d = grid.Centre(e.outside.x(), e.outside.y(), e.outside.z()) - a;
+        const bool leaves =
+            ((e.outside.array() < 0) || (e.outside.array() >= grid.dims.array())).any();
+        double t_max = leaves ? 0.5 : 1.0;
+        if (clip && d.z() < 0.0) t_max = std::min(t_max, (10.3 - a.z()) / d.z());
+        constexpr int kSamples = 512;
+        double t = t_max;
+        for (int s = 1; s <= kSamples; ++s) {
+          const double hi = t_max * s / kSamples;
+          if (hull.SurvivesAllViews(a + hi * d)) continue;
+          double lo = t_max * (s - 1) / kSamples;
+          double h = hi;
+          for (int step = 0; step < 40; ++step) {
+            const double mid = 0.5 * (lo + h);
+            (hull.SurvivesAllViews(a + mid * d) ? lo : h) = mid;
+          }
+          t = h;
+          break;
+        }
+        ts.push_back(t);
+      }
+      return ts;
+    };
+    MarchingCubesOptions mc;
+    mc.keep_largest_component = false;
+    const Mesh expected =
+        MarchingCubes(field, grid.Centre(0, 0, 0), grid.voxel_mm, brute_force, mc);
+    ASSERT_EQ(mesh.vertices.size(), expected.vertices.size());
+    ASSERT_EQ(mesh.faces, expected.faces);
+    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+      ASSERT_LT((mesh.vertices[v] - expected.vertices[v]).norm(), 1e-5 * grid.voxel_mm + 1e-5)
+          << "vertex " << v;
+    }
+    EXPECT_GT(mesh.vertices.size(), 1000u);  // a non-trivial surface
+    if (clip) {
+      const MeshStats stats = ComputeStats(mesh);
+      EXPECT_TRUE(stats.closed);
+      EXPECT_TRUE(stats.oriented);
+      EXPECT_NEAR(stats.bbox_min_mm.z(), 10.3, 1e-5);
     }
   }
-  const EdgeCrossings brute_force = [&](const std::vector<GridEdge>& edges) {
-    std::vector<double> ts;
-    for (const GridEdge& e : edges) {
-      const Eigen::Vector3d a = grid.Centre(e.inside.x(), e.inside.y(), e.inside.z());
-      const Eigen::Vector3d d = grid.Centre(e.outside.x(), e.outside.y(), e.outside.z()) - a;
-      const bool leaves =
-          ((e.outside.array() < 0) || (e.outside.array() >= grid.dims.array())).any();
-      double lo = 0.0;
-      double hi = leaves ? 0.5 : 1.0;
-      if (leaves && hull.SurvivesAllViews(a + 0.5 * d)) {
-        ts.push_back(0.5);
-        continue;
-      }
-      for (int s = 0; s < options.bisection_steps; ++s) {
-        const double mid = 0.5 * (lo + hi);
-        (hull.SurvivesAllViews(a + mid * d) ? lo : hi) = mid;
-      }
-      ts.push_back(0.5 * (lo + hi));
-    }
-    return ts;
-  };
-  MarchingCubesOptions mc;
-  mc.keep_largest_component = false;
-  const Mesh expected = MarchingCubes(field, grid.Centre(0, 0, 0), grid.voxel_mm, brute_force, mc);
-  ASSERT_EQ(mesh.vertices.size(), expected.vertices.size());
-  ASSERT_EQ(mesh.faces, expected.faces);
-  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
-    ASSERT_EQ(mesh.vertices[v], expected.vertices[v]) << "vertex " << v;
-  }
-  EXPECT_GT(mesh.vertices.size(), 1000u);  // a non-trivial surface
 }
 
 }  // namespace

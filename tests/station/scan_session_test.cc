@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 #include <stop_token>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -117,6 +118,229 @@ TEST_F(ScanSessionTest, AbortKeepsWhatWasCapturedAndSaysHowFarItGot) {
   EXPECT_TRUE(fs::exists(dir_ / "frames/stop_002.png"));
   EXPECT_FALSE(fs::exists(dir_ / "frames/stop_003.png"));
   EXPECT_FALSE(fs::exists(dir_ / "report.json"));
+}
+
+std::vector<std::string> States(const std::vector<ScanEvent>& events) {
+  std::vector<std::string> out;
+  for (const auto& e : events) {
+    if (e.note.empty() || IsTerminal(e.state)) out.emplace_back(ToString(e.state));
+  }
+  return out;
+}
+
+TEST_F(ScanSessionTest, EveryTransitionIsAnEventAndDoneComesAfterTheManifest) {
+  const StationConfig cfg = QuickConfig(3);
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value()) << devices.error().message;
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  ScanSession session(cfg, *devices, *folder, "scan-a");
+  std::vector<ScanEvent> events;
+  std::string manifest_state_at_done;
+  session.OnEvent([&](const ScanEvent& e) {
+    events.push_back(e);
+    if (e.state == ScanState::kDone) {
+      manifest_state_at_done = ReadJson(dir_ / "manifest.json")["state"];
+    }
+  });
+  auto result = session.Run(std::stop_token());
+  ASSERT_TRUE(result.has_value()) << result.error().message;
+  const std::vector<std::string> expected = {"homing",      "moving",  "settling", "capturing",
+                                             "integrating", "moving",  "settling", "capturing",
+                                             "integrating", "moving",  "settling", "capturing",
+                                             "integrating", "meshing", "writing",  "done"};
+  EXPECT_EQ(States(events), expected);
+  for (std::size_t k = 1; k < events.size(); ++k) EXPECT_GT(events[k].seq, events[k - 1].seq);
+  for (const auto& e : events) {
+    EXPECT_EQ(e.scan_id, "scan-a");
+    EXPECT_FALSE(e.time.empty());
+  }
+  EXPECT_EQ(events[5].stop, 1);
+  EXPECT_NEAR(events[5].angle_deg, 120.0, 1e-9);
+  EXPECT_EQ(events[5].stops_done, 1);
+  EXPECT_EQ(events.back().stops_done, 3);
+  EXPECT_EQ(manifest_state_at_done, "complete");
+}
+
+TEST_F(ScanSessionTest, ALostFrameIsRetriedAndTheScanCompletes) {
+  StationConfig cfg = QuickConfig(4);
+  cfg.station.camera_retry_delay_ms = 1;
+  cfg.station.simulate.camera_fail_after = 1;
+  cfg.station.simulate.camera_fail_count = 2;
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value()) << devices.error().message;
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  ScanSession session(cfg, *devices, *folder);
+  std::vector<std::string> notes;
+  session.OnEvent([&](const ScanEvent& e) {
+    if (!e.note.empty() && !IsTerminal(e.state)) notes.push_back(e.note);
+  });
+  auto result = session.Run(std::stop_token());
+  ASSERT_TRUE(result.has_value()) << result.error().message;
+  ASSERT_EQ(notes.size(), 2u);
+  EXPECT_NE(notes[0].find("re-try 1 of 2"), std::string::npos) << notes[0];
+  EXPECT_EQ(ReadJson(dir_ / "manifest.json")["state"], "complete");
+}
+
+TEST_F(ScanSessionTest, ACameraThatStaysLostFailsTheScanCleanly) {
+  StationConfig cfg = QuickConfig(4);
+  cfg.station.camera_retry_delay_ms = 1;
+  cfg.station.simulate.camera_fail_after = 2;
+  cfg.station.simulate.camera_fail_count = 1000;
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value());
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  ScanSession session(cfg, *devices, *folder);
+  std::optional<ScanEvent> last;
+  session.OnEvent([&](const ScanEvent& e) { last = e; });
+  auto result = session.Run(std::stop_token());
+  ASSERT_FALSE(result.has_value());
+  EXPECT_EQ(result.error().code, ErrorCode::kNoDevice);
+  EXPECT_NE(result.error().message.find("gave up after 2 re-tries"), std::string::npos)
+      << result.error().message;
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->state, ScanState::kFailed);
+  EXPECT_EQ(last->stops_done, 2);
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  EXPECT_EQ(manifest["state"], "failed");
+  EXPECT_EQ(manifest["error"]["code"], "no_device");
+  EXPECT_EQ(manifest["stops_done"], 2);
+  EXPECT_TRUE(fs::exists(dir_ / "frames/stop_001.png"));
+}
+
+TEST_F(ScanSessionTest, ADriveAlarmFailsTheScanWithTheAlarmCode) {
+  StationConfig cfg = QuickConfig(4);
+  cfg.station.simulate.drive_fault = "alarm";
+  cfg.station.simulate.drive_fault_move = 2;
+  cfg.station.simulate.drive_alarm_code = 0x31;
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value());
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  ScanSession session(cfg, *devices, *folder);
+  std::optional<ScanEvent> last;
+  session.OnEvent([&](const ScanEvent& e) { last = e; });
+  auto result = session.Run(std::stop_token());
+  ASSERT_FALSE(result.has_value());
+  EXPECT_EQ(result.error().code, ErrorCode::kAlarm);
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->state, ScanState::kFailed);
+  ASSERT_TRUE(last->alarm_code.has_value());
+  EXPECT_EQ(*last->alarm_code, 0x31);
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  EXPECT_EQ(manifest["error"]["alarm_code"], 0x31);
+  EXPECT_EQ(manifest["stops_done"], 2);
+}
+
+TEST_F(ScanSessionTest, AFullDiskFailsTheScanWithAClearError) {
+  const StationConfig cfg = QuickConfig(8);
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value());
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  folder->SetByteLimit(60000);
+  ScanSession session(cfg, *devices, *folder);
+  auto result = session.Run(std::stop_token());
+  ASSERT_FALSE(result.has_value());
+  EXPECT_EQ(result.error().code, ErrorCode::kIo);
+  EXPECT_NE(result.error().message.find("No space left on device"), std::string::npos)
+      << result.error().message;
+  // Whatever got written is whole: every listed stop has its files.
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  for (const auto& stop : manifest["stops"]) {
+    EXPECT_TRUE(fs::exists(dir_ / stop["frame"].get<std::string>()));
+    EXPECT_TRUE(fs::exists(dir_ / stop["mask"].get<std::string>()));
+  }
+  for (const auto& entry : fs::recursive_directory_iterator(dir_)) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
+  }
+}
+
+TEST_F(ScanSessionTest, AnInterruptedScanIsResumedFromItsSavedStops) {
+  const StationConfig cfg = QuickConfig(6);
+  {
+    auto devices = OpenDevices(cfg);
+    ASSERT_TRUE(devices.has_value());
+    auto folder = ScanFolder::Create(dir_);
+    ASSERT_TRUE(folder.has_value());
+    ScanSession session(cfg, *devices, *folder);
+    std::stop_source stop;
+    session.OnStop([&](const StopProgress& p) {
+      if (p.index == 2) stop.request_stop();
+    });
+    ASSERT_FALSE(session.Run(stop.get_token()).has_value());
+  }
+  ASSERT_EQ(ReadJson(dir_ / "manifest.json")["stops_done"], 3);
+
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value());
+  auto folder = ScanFolder::Open(dir_);
+  ASSERT_TRUE(folder.has_value()) << folder.error().message;
+  ScanSession session(cfg, *devices, *folder);
+  std::vector<int> captured;
+  session.OnStop([&](const StopProgress& p) { captured.push_back(p.index); });
+  std::vector<ScanEvent> events;
+  session.OnEvent([&](const ScanEvent& e) { events.push_back(e); });
+  auto result = session.Resume(std::stop_token());
+  ASSERT_TRUE(result.has_value()) << result.error().message;
+  EXPECT_EQ(captured, (std::vector<int>{3, 4, 5}));
+  EXPECT_EQ(result->stops_done, 6);
+  ASSERT_GE(events.size(), 2u);
+  EXPECT_EQ(events[0].state, ScanState::kHoming);
+  EXPECT_EQ(events[0].stops_done, 3);
+  EXPECT_NE(events[1].note.find("resuming"), std::string::npos);
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  EXPECT_EQ(manifest["state"], "complete");
+  EXPECT_EQ(manifest["stops"].size(), 6u);
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(manifest["stops"][k]["index"], k);
+  EXPECT_EQ(manifest["resumed"].size(), 1u);
+  EXPECT_TRUE(fs::exists(dir_ / "model/model.ply"));
+
+  // A complete scan is not resumed again.
+  ScanSession again(cfg, *devices, *folder);
+  auto twice = again.Resume(std::stop_token());
+  ASSERT_FALSE(twice.has_value());
+  EXPECT_EQ(twice.error().code, ErrorCode::kBadInput);
+}
+
+TEST_F(ScanSessionTest, AStopRequestStopsTheMotorFromTheRequestingThread) {
+  StationConfig cfg = QuickConfig(8);
+  cfg.turntable.mock.time_scale = 1.0;  // slow real-time moves: the stop lands mid-move
+  auto devices = OpenDevices(cfg);
+  ASSERT_TRUE(devices.has_value());
+  auto folder = ScanFolder::Create(dir_);
+  ASSERT_TRUE(folder.has_value());
+  ScanSession session(cfg, *devices, *folder);
+  std::stop_source stop;
+  std::atomic<bool> moving{false};
+  session.OnEvent([&](const ScanEvent& e) {
+    if (e.state == ScanState::kMoving && e.stop == 1) moving = true;
+  });
+  std::jthread scanner([&] {
+    auto result = session.Run(stop.get_token());
+    EXPECT_FALSE(result.has_value());
+  });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (!moving && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(moving);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  session.SetAbortReason("test");
+  stop.request_stop();
+  // The motor is stopped by the time request_stop() returns.
+  auto state = devices->turntable->State();
+  ASSERT_TRUE(state.has_value());
+  EXPECT_FALSE(state->moving);
+  scanner.join();
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  EXPECT_EQ(manifest["state"], "aborted");
+  EXPECT_EQ(manifest["abort"]["reason"], "test");
+  EXPECT_LT(manifest["abort"]["motor_stop_ms"].get<double>(), 1000.0);
+  EXPECT_NE(manifest["error"]["message"].get<std::string>().find("aborted (test)"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -1,0 +1,241 @@
+#include "reconstruct/cameras/views.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <fmt/format.h>
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <opencv2/imgproc.hpp>
+
+#include "base/log.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+double Radians(double deg) { return deg * std::numbers::pi / 180.0; }
+
+Eigen::Vector3d ClosestPointOnRay(const Ray& ray, const Eigen::Vector3d& point) {
+  return ray.origin + (point - ray.origin).dot(ray.direction) * ray.direction;
+}
+
+struct CarveResult {
+  Eigen::Vector3i dims = Eigen::Vector3i::Zero();
+  Eigen::Vector3i lo = Eigen::Vector3i::Constant(-1);  // surviving cells' index range
+  Eigen::Vector3i hi = Eigen::Vector3i::Constant(-1);
+  double cell = 0.0;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  bool any = false;
+  bool touches = false;
+};
+
+// Coarse carving of cell centres (see AutoVolumeOptions).
+CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
+                        const Box& box, const AutoVolumeOptions& options) {
+  CarveResult result;
+  const Eigen::Vector3d size = box.Size();
+  result.cell = size.maxCoeff() / options.resolution;
+  for (int a = 0; a < 3; ++a) {
+    result.dims[a] = std::max(1, static_cast<int>(std::ceil(size[a] / result.cell - 1e-9)));
+  }
+  result.origin = box.Centre() - 0.5 * result.cell * result.dims.cast<double>();
+  const int seen_needed = std::max(
+      1,
+      static_cast<int>(std::ceil(options.min_seen_fraction * static_cast<double>(views.size()))));
+  for (int k = 0; k < result.dims.z(); ++k) {
+    for (int j = 0; j < result.dims.y(); ++j) {
+      for (int i = 0; i < result.dims.x(); ++i) {
+        const Eigen::Vector3d x =
+            result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
+        int seen = 0;
+        bool carved = false;
+        for (std::size_t v = 0; v < views.size() && !carved; ++v) {
+          const Matrix34d& p = views[v].pixel_from_object;
+          const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
+          if (!(h.z() > 0.0)) continue;
+          const double u = std::floor(h.x() / h.z() + 0.5);
+          const double w = std::floor(h.y() / h.z() + 0.5);
+          if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
+          ++seen;
+          if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
+            carved = true;
+          }
+        }
+        if (carved || seen < seen_needed) continue;
+        const Eigen::Vector3i c(i, j, k);
+        if (!result.any) {
+          result.lo = result.hi = c;
+          result.any = true;
+        } else {
+          result.lo = result.lo.cwiseMin(c);
+          result.hi = result.hi.cwiseMax(c);
+        }
+      }
+    }
+  }
+  if (result.any) {
+    result.touches =
+        (result.lo.array() == 0).any() || (result.hi.array() == result.dims.array() - 1).any();
+  }
+  return result;
+}
+
+Box SurvivorsBox(const CarveResult& carve, double margin_cells) {
+  Box box;
+  box.min = carve.origin +
+            carve.cell * (carve.lo.cast<double>() + Eigen::Vector3d::Constant(0.5 - margin_cells));
+  box.max = carve.origin +
+            carve.cell * (carve.hi.cast<double>() + Eigen::Vector3d::Constant(0.5 + margin_cells));
+  return box;
+}
+
+}  // namespace
+
+View ThesisView(int width_px, int height_px, double plate_angle_deg) {
+  const double c = std::cos(Radians(plate_angle_deg));
+  const double s = std::sin(Radians(plate_angle_deg));
+  View view;
+  view.width_px = width_px;
+  view.height_px = height_px;
+  // u = u0 + (table x) with table_from_object = Rz(theta); v = (height - 1) - z.
+  view.pixel_from_object << c, -s, 0.0, 0.5 * (width_px - 1),  //
+      0.0, 0.0, -1.0, static_cast<double>(height_px - 1),      //
+      0.0, 0.0, 0.0, 1.0;
+  return view;
+}
+
+std::optional<Ray> BackProject(const View& view, const Eigen::Vector2d& pixel) {
+  const Matrix34d& p = view.pixel_from_object;
+  const Eigen::Vector4d a = (p.row(0) - pixel.x() * p.row(2)).transpose();
+  const Eigen::Vector4d b = (p.row(1) - pixel.y() * p.row(2)).transpose();
+  Eigen::Matrix<double, 2, 3> m;
+  m.row(0) = a.head<3>().transpose();
+  m.row(1) = b.head<3>().transpose();
+  Eigen::Vector3d direction = m.row(0).cross(m.row(1)).transpose();
+  const double norm = direction.norm();
+  if (!(norm > 1e-12 * m.cwiseAbs().maxCoeff() * m.cwiseAbs().maxCoeff())) return std::nullopt;
+  direction /= norm;
+  const Eigen::Matrix2d mmt = m * m.transpose();
+  const Eigen::Vector2d rhs(-a[3], -b[3]);
+  Ray ray;
+  ray.origin = m.transpose() * mmt.ldlt().solve(rhs);
+  const Eigen::Vector3d depth_gradient = p.block<1, 3>(2, 0).transpose();
+  double along = depth_gradient.dot(direction);
+  if (depth_gradient.isZero(0.0)) {
+    // Affine: the viewing direction is r1 x r2 (for K·[R t] with a proper R, the camera's +z).
+    along = p.block<1, 3>(0, 0).cross(p.block<1, 3>(1, 0)).dot(direction.transpose());
+  }
+  ray.direction = along < 0.0 ? -direction : direction;
+  return ray;
+}
+
+double Depth(const View& view, const Eigen::Vector3d& point_object) {
+  return view.pixel_from_object.row(2).head<3>().dot(point_object) + view.pixel_from_object(2, 3);
+}
+
+View NormaliseViewSign(View view, const Eigen::Vector3d& point_in_front) {
+  if (Depth(view, point_in_front) < 0.0) view.pixel_from_object = -view.pixel_from_object;
+  return view;
+}
+
+Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
+                                           const std::vector<View>& views) {
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> directions;
+  for (std::size_t i = 0; i < masks.size() && i < views.size(); ++i) {
+    const cv::Moments moments = cv::moments(masks[i], /*binaryImage=*/true);
+    if (moments.m00 <= 0.0) continue;
+    const std::optional<Ray> ray = BackProject(
+        views[i], Eigen::Vector2d(moments.m10 / moments.m00, moments.m01 / moments.m00));
+    if (!ray) continue;
+    const Eigen::Matrix3d projector =
+        Eigen::Matrix3d::Identity() - ray->direction * ray->direction.transpose();
+    normal_matrix += projector;
+    rhs += projector * ray->origin;
+    directions.push_back(ray->direction);
+  }
+  double spread = 0.0;
+  for (const Eigen::Vector3d& d : directions) {
+    spread = std::max(spread, d.cross(directions.front()).norm());
+  }
+  if (directions.size() < 2 || spread < 1e-3) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("cannot locate the object: {} silhouette(s) with an object and "
+                                 "their viewing directions {} (at least two views from different "
+                                 "directions are needed)",
+                                 directions.size(), spread < 1e-3 ? "are parallel" : "differ"));
+  }
+  return Eigen::Vector3d(normal_matrix.ldlt().solve(rhs));
+}
+
+Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& masks,
+                                                  const std::vector<View>& views_in,
+                                                  const AutoVolumeOptions& options) {
+  if (masks.size() != views_in.size()) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{} masks for {} views", masks.size(), views_in.size()));
+  }
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (masks[i].type() != CV_8UC1 || masks[i].cols != views_in[i].width_px ||
+        masks[i].rows != views_in[i].height_px) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("mask {} is not CV_8UC1 of its view's size {}x{}", i,
+                                   views_in[i].width_px, views_in[i].height_px));
+    }
+  }
+  Expected<Eigen::Vector3d> centre = SilhouetteCentre(masks, views_in);
+  if (!centre) return std::unexpected(centre.error());
+  std::vector<View> views;
+  views.reserve(views_in.size());
+  for (const View& view : views_in) views.push_back(NormaliseViewSign(view, *centre));
+
+  // The search box: the silhouettes' extents around the centre.
+  double radius = 0.0;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    const cv::Rect rect = cv::boundingRect(masks[i]);
+    if (rect.area() == 0) continue;
+    for (const Eigen::Vector2d& corner :
+         {Eigen::Vector2d(rect.x - 0.5, rect.y - 0.5),
+          Eigen::Vector2d(rect.x + rect.width - 0.5, rect.y - 0.5),
+          Eigen::Vector2d(rect.x - 0.5, rect.y + rect.height - 0.5),
+          Eigen::Vector2d(rect.x + rect.width - 0.5, rect.y + rect.height - 0.5)}) {
+      if (const std::optional<Ray> ray = BackProject(views[i], corner)) {
+        radius = std::max(radius, (ClosestPointOnRay(*ray, *centre) - *centre).norm());
+      }
+    }
+  }
+  if (!(radius > 0.0)) {
+    return MakeError(ErrorCode::kBadInput, "every silhouette is empty");
+  }
+  AutoVolume result;
+  result.centre = *centre;
+  Box search{*centre - Eigen::Vector3d::Constant(1.5 * radius),
+             *centre + Eigen::Vector3d::Constant(1.5 * radius)};
+  CarveResult carve;
+  for (int attempt = 0;; ++attempt) {
+    carve = CoarseCarve(masks, views, search, options);
+    if (!carve.any) {
+      return MakeError(ErrorCode::kBadInput,
+                       "no point lies inside every silhouette that sees it: the cameras do not "
+                       "match the images, or the silhouettes are wrong");
+    }
+    if (!carve.touches || attempt == 3) break;
+    search = Box{*centre - 2.0 * (*centre - search.min), *centre + 2.0 * (search.max - *centre)};
+  }
+  result.touches_limit = carve.touches;
+  const Box first = SurvivorsBox(carve, options.margin_cells);
+  carve = CoarseCarve(masks, views, first, options);
+  result.box = carve.any ? SurvivorsBox(carve, options.margin_cells) : first;
+  Logger("reconstruct")
+      ->debug(
+          "auto volume: centre ({:.4g}, {:.4g}, {:.4g}), box ({:.4g}, {:.4g}, {:.4g}) to "
+          "({:.4g}, {:.4g}, {:.4g}){}",
+          centre->x(), centre->y(), centre->z(), result.box.min.x(), result.box.min.y(),
+          result.box.min.z(), result.box.max.x(), result.box.max.y(), result.box.max.z(),
+          result.touches_limit ? " (the silhouettes leave it unbounded)" : "");
+  return result;
+}
+
+}  // namespace revolve::reconstruct

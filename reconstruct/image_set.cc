@@ -1,0 +1,380 @@
+#include "reconstruct/image_set.h"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <map>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace revolve::reconstruct {
+namespace {
+
+bool IsImageFile(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".png" || ext == ".tif" || ext == ".tiff" || ext == ".jpg" || ext == ".jpeg" ||
+         ext == ".bmp" || ext == ".pgm" || ext == ".ppm";
+}
+
+cv::Mat Disc(int radius_px) {
+  return cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                   cv::Size(2 * radius_px + 1, 2 * radius_px + 1));
+}
+
+// Background not 4-connected to the border becomes object, when its region has at most
+// `max_area_px` pixels (0: any size).
+cv::Mat FillHoles(const cv::Mat& mask, int max_area_px) {
+  cv::Mat padded;
+  cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::Mat flood = padded.clone();
+  cv::floodFill(flood, cv::Point(0, 0), cv::Scalar(255), nullptr, cv::Scalar(), cv::Scalar(), 4);
+  cv::Mat holes;
+  cv::bitwise_not(flood, holes);
+  if (max_area_px > 0) {
+    cv::Mat labels;
+    cv::Mat stats;
+    cv::Mat centroids;
+    const int count = cv::connectedComponentsWithStats(holes, labels, stats, centroids, 4, CV_32S);
+    for (int v = 0; v < holes.rows; ++v) {
+      const int* l = labels.ptr<int>(v);
+      auto* h = holes.ptr<std::uint8_t>(v);
+      for (int u = 0; u < holes.cols; ++u) {
+        if (l[u] > 0 && l[u] < count && stats.at<int>(l[u], cv::CC_STAT_AREA) > max_area_px) {
+          h[u] = 0;
+        }
+      }
+    }
+  }
+  cv::Mat filled;
+  cv::bitwise_or(padded, holes, filled);
+  return filled(cv::Rect(1, 1, mask.cols, mask.rows)).clone();
+}
+
+cv::Mat DropSmallComponents(const cv::Mat& mask, double min_fraction) {
+  cv::Mat labels;
+  cv::Mat stats;
+  cv::Mat centroids;
+  const int count = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  if (count <= 2) return mask;
+  int largest = 0;
+  for (int i = 1; i < count; ++i) largest = std::max(largest, stats.at<int>(i, cv::CC_STAT_AREA));
+  const double min_area = min_fraction * largest;
+  std::vector<std::uint8_t> keep(static_cast<std::size_t>(count), 0);
+  for (int i = 1; i < count; ++i) keep[i] = stats.at<int>(i, cv::CC_STAT_AREA) >= min_area;
+  cv::Mat out(mask.size(), CV_8UC1, cv::Scalar(0));
+  for (int v = 0; v < mask.rows; ++v) {
+    const int* l = labels.ptr<int>(v);
+    auto* o = out.ptr<std::uint8_t>(v);
+    for (int u = 0; u < mask.cols; ++u) o[u] = keep[l[u]] ? 255 : 0;
+  }
+  return out;
+}
+
+// The number at the start of `text`: its value and its digit count.
+std::optional<std::pair<long, int>> LeadingNumber(std::string_view text) {
+  std::size_t n = 0;
+  while (n < text.size() && std::isdigit(static_cast<unsigned char>(text[n]))) ++n;
+  if (n == 0 || n > 9) return std::nullopt;
+  long value = 0;
+  std::from_chars(text.data(), text.data() + n, value);
+  return std::make_pair(value, static_cast<int>(n));
+}
+
+}  // namespace
+
+Expected<NamePattern> NamePattern::Parse(std::string_view pattern) {
+  const auto bad = [&](const std::string& what) {
+    return MakeError(ErrorCode::kBadInput, fmt::format("pattern \"{}\": {}", pattern, what));
+  };
+  if (pattern.empty()) return bad("empty");
+  if (pattern.find('/') != std::string_view::npos) {
+    return bad("a file name pattern cannot hold '/' (give the folder with --images)");
+  }
+  NamePattern result;
+  int placeholders = 0;
+  std::size_t pos = 0;
+  std::string* part = &result.prefix_;
+  while (pos < pattern.size()) {
+    if (pattern[pos] == '{') {
+      const std::size_t close = pattern.find('}', pos);
+      if (close == std::string_view::npos) return bad("'{' without '}'");
+      const std::string_view name = pattern.substr(pos + 1, close - pos - 1);
+      if (name != "angle" && name != "index") {
+        return bad(
+            fmt::format("unknown placeholder {{{}}} (expected {{angle}} or {{index}})", name));
+      }
+      if (++placeholders > 1) return bad("use exactly one of {angle} and {index}, once");
+      result.is_angle_ = name == "angle";
+      part = &result.suffix_;
+      pos = close + 1;
+      continue;
+    }
+    part->push_back(pattern[pos++]);
+  }
+  if (placeholders == 0) return bad("holds neither {angle} nor {index}");
+  return result;
+}
+
+std::optional<NamePattern::Number> NamePattern::Match(std::string_view file_name) const {
+  if (file_name.size() <= prefix_.size() + suffix_.size()) return std::nullopt;
+  if (file_name.substr(0, prefix_.size()) != prefix_) return std::nullopt;
+  if (file_name.substr(file_name.size() - suffix_.size()) != suffix_) return std::nullopt;
+  const std::string_view middle =
+      file_name.substr(prefix_.size(), file_name.size() - prefix_.size() - suffix_.size());
+  const auto number = LeadingNumber(middle);
+  if (!number || number->second != static_cast<int>(middle.size())) return std::nullopt;
+  return Number{number->first, number->second};
+}
+
+std::string NamePattern::Format(long number, int digits) const {
+  return prefix_ + fmt::format("{:0{}d}", number, std::max(digits, 1)) + suffix_;
+}
+
+std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image) {
+  cv::Mat grey;
+  if (image.channels() == 1) {
+    grey = image;
+  } else {
+    std::vector<cv::Mat> channels;
+    cv::split(image, channels);
+    for (int c = 1; c < std::min(3, image.channels()); ++c) {
+      if (cv::countNonZero(channels[0] != channels[c]) != 0) return std::nullopt;
+    }
+    grey = channels[0];
+  }
+  int hist[256] = {};
+  for (int v = 0; v < grey.rows; ++v) {
+    const auto* row = grey.ptr<std::uint8_t>(v);
+    for (int u = 0; u < grey.cols; ++u) ++hist[row[u]];
+  }
+  int levels = 0;
+  int high = 0;
+  for (int i = 0; i < 256; ++i) {
+    if (hist[i] == 0) continue;
+    ++levels;
+    high = i;
+  }
+  if (levels > 2 || (levels == 2 && hist[0] == 0)) return std::nullopt;
+  if (levels == 2 && high != 1 && high != 255) return std::nullopt;
+  cv::Mat mask = grey != 0;
+  // Polarity from the border: mostly object there means the object is black on white.
+  std::int64_t border = 0;
+  std::int64_t border_set = 0;
+  for (int u = 0; u < mask.cols; ++u) {
+    border_set +=
+        (mask.at<std::uint8_t>(0, u) != 0) + (mask.at<std::uint8_t>(mask.rows - 1, u) != 0);
+    border += 2;
+  }
+  for (int v = 0; v < mask.rows; ++v) {
+    border_set +=
+        (mask.at<std::uint8_t>(v, 0) != 0) + (mask.at<std::uint8_t>(v, mask.cols - 1) != 0);
+    border += 2;
+  }
+  if (2 * border_set > border) cv::bitwise_not(mask, mask);
+  return mask;
+}
+
+cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
+  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
+  const int channels = image.channels();
+  for (int v = 0; v < image.rows; ++v) {
+    const auto* in = image.ptr<std::uint8_t>(v);
+    auto* out = mask.ptr<std::uint8_t>(v);
+    for (int u = 0; u < image.cols; ++u) {
+      bool object = false;
+      for (int c = 0; c < std::min(channels, 3); ++c)
+        object |= in[u * channels + c] > options.threshold;
+      out[u] = object ? 255 : 0;
+    }
+  }
+  if (options.close_px > 0) cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, Disc(options.close_px));
+  if (options.open_px > 0) cv::morphologyEx(mask, mask, cv::MORPH_OPEN, Disc(options.open_px));
+  if (options.min_component_fraction > 0.0) {
+    mask = DropSmallComponents(mask, options.min_component_fraction);
+  }
+  if (options.fill_holes) mask = FillHoles(mask, options.max_hole_area_px);
+  return mask;
+}
+
+Expected<cv::Mat> ReadImage8(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such image file", path.string()));
+  }
+  cv::Mat image;
+  try {
+    image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: cannot be decoded: {}", path.string(), e.what()));
+  }
+  if (image.empty()) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: cannot be read as an image (damaged or an unsupported "
+                                 "format)",
+                                 path.string()));
+  }
+  if (image.depth() != CV_8U) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: {}-bit samples; 8-bit images expected", path.string(),
+                                 image.depth() == CV_16U ? 16 : 32));
+  }
+  if (image.channels() == 4) {
+    cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
+  } else if (image.channels() != 1 && image.channels() != 3) {
+    return MakeError(ErrorCode::kBadInput, fmt::format("{}: {} channels; grey or colour expected",
+                                                       path.string(), image.channels()));
+  }
+  return image;
+}
+
+Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such folder", dir.string()));
+  }
+  if (!(options.step_deg > 0.0) || !std::isfinite(options.step_deg)) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("step {} deg: expected a positive angle", options.step_deg));
+  }
+  std::vector<std::filesystem::path> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    if (entry.is_regular_file() && IsImageFile(entry.path())) files.push_back(entry.path());
+  }
+  if (ec) {
+    return MakeError(ErrorCode::kIo,
+                     fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
+  }
+  std::sort(files.begin(), files.end());
+
+  ImageSet set;
+  if (options.pattern.empty()) {
+    if (files.empty()) {
+      return MakeError(ErrorCode::kNotFound,
+                       fmt::format("{}: no image file (.png .tif .tiff .jpg .jpeg .bmp .pgm .ppm)",
+                                   dir.string()));
+    }
+    for (std::size_t i = 0; i < files.size(); ++i) {
+      SetImage image;
+      image.path = files[i];
+      image.file_name = files[i].filename().string();
+      image.index = static_cast<int>(i);
+      image.angle_deg = static_cast<double>(i) * options.step_deg;
+      set.images.push_back(std::move(image));
+    }
+  } else {
+    Expected<NamePattern> pattern = NamePattern::Parse(options.pattern);
+    if (!pattern) return std::unexpected(pattern.error());
+    std::map<long, std::filesystem::path> by_stop;
+    int digits = 0;
+    for (const std::filesystem::path& file : files) {
+      const std::string name = file.filename().string();
+      const std::optional<NamePattern::Number> number = pattern->Match(name);
+      if (!number) continue;
+      long stop = number->value;
+      if (pattern->is_angle()) {
+        stop = std::lround(static_cast<double>(number->value) / options.step_deg);
+        // {angle} is in whole degrees: allow the rounding of a fractional stop angle.
+        if (std::abs(static_cast<double>(stop) * options.step_deg -
+                     static_cast<double>(number->value)) > 0.5 + 1e-9) {
+          return MakeError(ErrorCode::kBadInput,
+                           fmt::format("{}: angle {} deg is not a multiple of the {} deg step",
+                                       file.string(), number->value, options.step_deg));
+        }
+      } else if (number->digits > static_cast<int>(fmt::format("{}", number->value).size())) {
+        digits = number->digits;  // zero-padded names: name a missing one the same way
+      }
+      if (auto [it, inserted] = by_stop.emplace(stop, file); !inserted) {
+        return MakeError(
+            ErrorCode::kBadInput,
+            fmt::format("{} and {} are the same stop ({})", it->second.string(), file.string(),
+                        pattern->is_angle()
+                            ? fmt::format("{} deg", static_cast<double>(stop) * options.step_deg)
+                            : fmt::format("index {}", stop)));
+      }
+    }
+    if (by_stop.empty()) {
+      return MakeError(ErrorCode::kNotFound, fmt::format("{}: no image file matches \"{}\"",
+                                                         dir.string(), options.pattern));
+    }
+    const long first = by_stop.begin()->first;
+    const long last = by_stop.rbegin()->first;
+    for (long stop = first; stop <= last; ++stop) {
+      if (by_stop.count(stop) == 0) {
+        const std::string missing =
+            pattern->is_angle()
+                ? pattern->Format(std::lround(static_cast<double>(stop) * options.step_deg))
+                : pattern->Format(stop, digits);
+        return MakeError(
+            ErrorCode::kNotFound,
+            fmt::format("{}: missing (the set runs from {} to {})", (dir / missing).string(),
+                        by_stop.begin()->second.filename().string(),
+                        by_stop.rbegin()->second.filename().string()));
+      }
+    }
+    for (const auto& [stop, file] : by_stop) {
+      SetImage image;
+      image.path = file;
+      image.file_name = file.filename().string();
+      image.index = static_cast<int>(pattern->is_angle() ? stop : stop - first);
+      image.angle_deg = static_cast<double>(image.index) * options.step_deg;
+      set.images.push_back(std::move(image));
+    }
+  }
+
+  for (std::size_t i = 0; i < set.images.size(); ++i) {
+    SetImage& image = set.images[i];
+    Expected<cv::Mat> pixels = ReadImage8(image.path);
+    if (!pixels) return std::unexpected(pixels.error());
+    if (i == 0) {
+      set.width_px = pixels->cols;
+      set.height_px = pixels->rows;
+    } else if (pixels->cols != set.width_px || pixels->rows != set.height_px) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("{}: {}x{} pixels, but {} is {}x{} (all images of a set must "
+                                   "have one size)",
+                                   image.path.string(), pixels->cols, pixels->rows,
+                                   set.images[0].file_name, set.width_px, set.height_px));
+    }
+    std::optional<cv::Mat> silhouette = BinarySilhouette(*pixels);
+    const ImageKind kind = silhouette ? ImageKind::kSilhouette : ImageKind::kPhoto;
+    if (i == 0) {
+      set.kind = kind;
+    } else if (kind != set.kind) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("{}: a {} among {} (all images of a set must be binary silhouettes, or all "
+                      "photos)",
+                      image.path.string(),
+                      kind == ImageKind::kSilhouette ? "binary silhouette" : "photo",
+                      set.kind == ImageKind::kSilhouette ? "binary silhouettes" : "photos"));
+    }
+    if (silhouette) {
+      image.mask = std::move(*silhouette);
+    } else {
+      if (pixels->channels() == 1) {
+        cv::cvtColor(*pixels, image.image, cv::COLOR_GRAY2BGR);
+      } else {
+        image.image = *pixels;
+      }
+      image.mask = SegmentPhoto(image.image, options.segmentation);
+    }
+    if (cv::countNonZero(image.mask) == 0) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("{}: the silhouette is empty ({})", image.path.string(),
+                                   set.kind == ImageKind::kSilhouette
+                                       ? "no object pixel"
+                                       : fmt::format("no pixel brighter than {} on the black "
+                                                     "background",
+                                                     options.segmentation.threshold)));
+    }
+  }
+  return set;
+}
+
+}  // namespace revolve::reconstruct

@@ -1,0 +1,112 @@
+// A folder of images as reconstruction input (`revolve reconstruct --images DIR`): which files,
+// in which order, at which angle, and the silhouette of each.
+//
+// Naming (`pattern`): `{angle}` stands for the stop's angle in whole degrees and `{index}` for its
+// number (digits, zero-padding allowed); every other character is literal. `bw_shoe{angle}.tif`
+// matches the thesis's bw_shoe0.tif ... bw_shoe350.tif, `dinoSR{index}.png` the Middlebury
+// files. Without a pattern every image file of the folder (.png .tif .tiff .jpg .jpeg .bmp .pgm
+// .ppm, any case) is taken, in file-name order, stop k at k * step_deg.
+//
+// Two kinds of image, told apart per file and required to agree across the set:
+//  - binary silhouettes (the thesis's input): one grey channel (or three equal ones) holding only
+//    two levels (0 and 255, or 0 and 1). Object white on black, or inverted: the polarity is
+//    taken from the image border, which must be mostly background. The mask is the image; there
+//    is no colour for texture.
+//  - photos on a black background: the mask is the pixels where any channel exceeds
+//    `threshold`, then a closing (`close_px`), an opening (`open_px`), components smaller than
+//    `min_component_fraction` of the largest dropped, and holes up to `max_hole_area_px` filled.
+//    The photo is kept (BGR) for texture.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "base/error.h"
+
+namespace revolve::reconstruct {
+
+struct PhotoSegmentation {
+  int threshold = 20;  // 0..254: object where any channel > threshold (8-bit)
+  int close_px = 3;    // closing radius (elliptical kernel 2r+1); 0 disables
+  int open_px = 1;     // opening radius; 0 disables
+  // Connected components (8-connected) smaller than this fraction of the largest are dropped
+  // (specks of noise on the backdrop); 0 keeps all, 1 keeps only the largest.
+  double min_component_fraction = 0.05;
+  bool fill_holes = true;
+  // Holes (background regions not reaching the border) larger than this stay open: the gaps
+  // between a temple's columns. 0 fills every hole.
+  int max_hole_area_px = 0;
+};
+
+struct ImageSetOptions {
+  std::string pattern;     // empty: every image file of the folder, in name order
+  double step_deg = 10.0;  // angle between consecutive stops (> 0)
+  PhotoSegmentation segmentation;
+};
+
+enum class ImageKind { kSilhouette, kPhoto };
+
+struct SetImage {
+  std::filesystem::path path;
+  std::string file_name;
+  // Stop number: round({angle} / step), {index} minus the lowest found, or the position in name
+  // order.
+  int index = 0;
+  double angle_deg = 0.0;  // index * step_deg
+  cv::Mat image;           // CV_8UC3 BGR for photos; empty for silhouettes
+  cv::Mat mask;            // CV_8UC1, 255 = object
+};
+
+struct ImageSet {
+  ImageKind kind = ImageKind::kPhoto;
+  int width_px = 0;
+  int height_px = 0;
+  std::vector<SetImage> images;  // by index (pattern) or by file name
+};
+
+// A file-name pattern with {angle} / {index} (see the file comment).
+class NamePattern {
+ public:
+  // Errors: bad_input for an empty pattern, one with both or neither of {angle} and {index}, a
+  // placeholder given twice, a '/' or an unknown {placeholder}.
+  static Expected<NamePattern> Parse(std::string_view pattern);
+
+  struct Number {
+    long value = 0;
+    int digits = 0;  // as written, with any leading zeros
+  };
+  // The number in place of the placeholder, or nullopt when `file_name` does not match.
+  std::optional<Number> Match(std::string_view file_name) const;
+  // The file name for `number`, zero-padded to `digits` (0: no padding).
+  std::string Format(long number, int digits = 0) const;
+  bool is_angle() const { return is_angle_; }
+
+ private:
+  std::string prefix_;
+  std::string suffix_;
+  bool is_angle_ = false;
+};
+
+// Silhouette of a binary image (see the file comment), or nullopt when the image is not binary.
+// `image`: 8-bit, 1, 3 or 4 channels.
+std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image);
+
+// The mask of a photo on a black background (see the file comment). `image`: 8-bit BGR or grey.
+cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options);
+
+// Loads the set. Errors name the file: not_found (no folder, no image in it, no file matching
+// the pattern, a stop missing between the first and the last: the expected file name), bad_input
+// (an unreadable or non-8-bit image, sizes that differ, silhouettes mixed with photos, an empty
+// silhouette, two files for one stop, an {angle} that is not a multiple of step_deg, a bad
+// pattern or step).
+Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options);
+
+// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha). Errors:
+// not_found, or bad_input naming the file (not an image OpenCV can decode, not 8-bit).
+Expected<cv::Mat> ReadImage8(const std::filesystem::path& path);
+
+}  // namespace revolve::reconstruct

@@ -1,0 +1,602 @@
+// OBJ + MTL + PNG, binary STL and glTF binary writers; OBJ and STL readers.
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <unordered_map>
+
+#include <fmt/format.h>
+#include <Eigen/Geometry>
+#include <opencv2/imgcodecs.hpp>
+
+#include "reconstruct/io/atomic_file.h"
+#include "reconstruct/io/mesh_io.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+namespace fs = std::filesystem;
+
+static_assert(std::endian::native == std::endian::little,
+              "the STL and glTF writers assume a little-endian host");
+
+using internal::AppendFixed;
+using internal::AppendInt;
+using internal::AtomicFile;
+
+constexpr const char* kMaterialName = "revolve";
+// Text coordinates: 0.1 um in millimetres, far below any scan's accuracy.
+constexpr int kMmDecimals = 4;
+
+Expected<std::string> ReadWholeFile(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  }
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+Error BadFile(const fs::path& path, std::string_view what) {
+  return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
+}
+
+Eigen::Vector3f FaceNormal(const Mesh& mesh, const Eigen::Vector3i& f) {
+  const Eigen::Vector3f& a = mesh.vertices[f[0]];
+  const Eigen::Vector3f n = (mesh.vertices[f[1]] - a).cross(mesh.vertices[f[2]] - a);
+  const float length = n.norm();
+  return length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+}
+
+// A double that parses back to exactly `value` (glTF's min/max must equal the data's).
+void AppendExact(std::string* out, float value) {
+  char buffer[40];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), static_cast<double>(value));
+  out->append(buffer, result.ptr);
+}
+
+void Pad4(std::string* bytes, char fill) {
+  while (bytes->size() % 4 != 0) {
+    bytes->push_back(fill);
+  }
+}
+
+template <class T>
+void AppendBytes(std::string* out, const T* data, std::size_t count) {
+  out->append(reinterpret_cast<const char*>(data), count * sizeof(T));
+}
+
+}  // namespace
+
+namespace internal {
+
+Expected<std::string> EncodePng(const cv::Mat& bgr) {
+  std::vector<std::uint8_t> bytes;
+  bool ok = false;
+  try {
+    // zlib's fastest level with run-length matching: the atlas is frames' pixels and flat
+    // padding; encoding time matters more than a few percent of size.
+    ok = cv::imencode(
+        ".png", bgr, bytes,
+        {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE});
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kInternal, fmt::format("cannot encode the texture: {}", e.what()));
+  }
+  if (!ok) {
+    return MakeError(ErrorCode::kInternal, "cannot encode the texture as PNG");
+  }
+  return std::string(bytes.begin(), bytes.end());
+}
+
+std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
+  std::vector<Eigen::Vector3f> normals(mesh.vertices.size(), Eigen::Vector3f::Zero());
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    const Eigen::Vector3f& a = mesh.vertices[f[0]];
+    // Twice the area times the unit normal.
+    const Eigen::Vector3f n = (mesh.vertices[f[1]] - a).cross(mesh.vertices[f[2]] - a);
+    for (int c = 0; c < 3; ++c) {
+      normals[f[c]] += n;
+    }
+  }
+  for (Eigen::Vector3f& n : normals) {
+    const float length = n.norm();
+    n = length > 0.0f && std::isfinite(length) ? Eigen::Vector3f(n / length)
+                                               : Eigen::Vector3f::UnitZ();
+  }
+  return normals;
+}
+
+Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::string* png) {
+  const bool textured = mesh.HasTexture();
+  const bool colors = mesh.HasColors();
+  fs::path mtl_path = path;
+  mtl_path.replace_extension(".mtl");
+  fs::path png_path = path;
+  png_path.replace_extension(".png");
+
+  if (textured) {
+    std::string encoded;
+    if (png == nullptr) {
+      Expected<std::string> bytes = EncodePng(mesh.texture);
+      if (!bytes) {
+        return std::unexpected(bytes.error());
+      }
+      encoded = std::move(*bytes);
+      png = &encoded;
+    }
+    if (Expected<void> written = WriteFileAtomically(png_path, *png); !written) {
+      return written;
+    }
+  }
+  std::string mtl = fmt::format("# revolve material\nnewmtl {}\nKa 0 0 0\nKs 0 0 0\nd 1\nillum 1\n",
+                                kMaterialName);
+  mtl += textured ? fmt::format("Kd 1 1 1\nmap_Kd {}\n", png_path.filename().string())
+                  : std::string("Kd 0.8 0.8 0.8\n");
+  if (Expected<void> written = WriteFileAtomically(mtl_path, mtl); !written) {
+    return written;
+  }
+
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
+  std::string text = fmt::format(
+      "# revolve model: object frame, millimetres, z up; {} vertices, {} triangles\n"
+      "mtllib {}\n",
+      mesh.vertices.size(), mesh.faces.size(), mtl_path.filename().string());
+  auto flush = [&] {
+    if (text.size() > (1 << 16)) {
+      file.Append(text);
+      text.clear();
+    }
+  };
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3f& v = mesh.vertices[i];
+    text += "v ";
+    AppendFixed(&text, v.x(), kMmDecimals);
+    text += ' ';
+    AppendFixed(&text, v.y(), kMmDecimals);
+    text += ' ';
+    AppendFixed(&text, v.z(), kMmDecimals);
+    if (colors) {
+      for (int k = 0; k < 3; ++k) {
+        text += ' ';
+        AppendFixed(&text, static_cast<float>(mesh.colors[i][k] / 255.0), 4);
+      }
+    }
+    text += '\n';
+    flush();
+  }
+  if (textured) {
+    for (const Eigen::Vector2f& uv : mesh.uvs) {
+      text += "vt ";
+      AppendFixed(&text, uv.x(), 6);
+      text += ' ';
+      AppendFixed(&text, 1.0f - uv.y(), 6);
+      text += '\n';
+      flush();
+    }
+  }
+  text += fmt::format("usemtl {}\n", kMaterialName);
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    text += 'f';
+    for (int c = 0; c < 3; ++c) {
+      text += ' ';
+      AppendInt(&text, f[c] + 1);
+      if (textured) {
+        text += '/';
+        AppendInt(&text, mesh.uv_faces[i][c] + 1);
+      }
+    }
+    text += '\n';
+    flush();
+  }
+  file.Append(text);
+  return file.Commit();
+}
+
+Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
+  const bool textured = mesh.HasTexture();
+  const bool colors = !textured && mesh.HasColors();
+  const std::vector<Eigen::Vector3f> vertex_normals = VertexNormals(mesh);
+
+  // The vertices as glTF sees them: split by uv where textured.
+  std::vector<int> source;  // glTF vertex -> mesh vertex
+  std::vector<int> uv_of;   // glTF vertex -> uv index (textured)
+  std::vector<std::uint32_t> indices;
+  indices.reserve(mesh.faces.size() * 3);
+  if (textured) {
+    std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
+    std::unordered_map<std::uint64_t, int> others;
+    for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+      for (int c = 0; c < 3; ++c) {
+        const int v = mesh.faces[i][c];
+        const int t = mesh.uv_faces[i][c];
+        int& slot = first[t];
+        int index = slot;
+        if (index < 0 || source[index] != v) {
+          const std::uint64_t key = (std::uint64_t(std::uint32_t(v)) << 32) | std::uint32_t(t);
+          if (index >= 0) {
+            const auto it = others.find(key);
+            index = it == others.end() ? -1 : it->second;
+          }
+          if (index < 0) {
+            index = static_cast<int>(source.size());
+            source.push_back(v);
+            uv_of.push_back(t);
+            if (slot < 0) {
+              slot = index;
+            } else {
+              others.emplace(key, index);
+            }
+          }
+        }
+        indices.push_back(static_cast<std::uint32_t>(index));
+      }
+    }
+  } else {
+    source.resize(mesh.vertices.size());
+    for (std::size_t v = 0; v < source.size(); ++v) {
+      source[v] = static_cast<int>(v);
+    }
+    for (const Eigen::Vector3i& f : mesh.faces) {
+      for (int c = 0; c < 3; ++c) {
+        indices.push_back(static_cast<std::uint32_t>(f[c]));
+      }
+    }
+  }
+  const std::size_t n = source.size();
+
+  std::string bin;
+  struct View {
+    std::size_t offset, length;
+    int target;  // 0: none
+  };
+  std::vector<View> views;
+  auto add_view = [&](auto fill, int target) {
+    const std::size_t offset = bin.size();
+    fill();
+    views.push_back({offset, bin.size() - offset, target});
+    Pad4(&bin, '\0');
+    return static_cast<int>(views.size() - 1);
+  };
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f hi = -lo;
+  const int position_view = add_view(
+      [&] {
+        for (int v : source) {
+          const Eigen::Vector3f& p = mesh.vertices[v];
+          lo = lo.cwiseMin(p);
+          hi = hi.cwiseMax(p);
+          AppendBytes(&bin, p.data(), 3);
+        }
+      },
+      34962);
+  const int normal_view = add_view(
+      [&] {
+        for (int v : source) {
+          AppendBytes(&bin, vertex_normals[v].data(), 3);
+        }
+      },
+      34962);
+  int extra_view = -1;
+  if (textured) {
+    extra_view = add_view(
+        [&] {
+          for (int t : uv_of) {
+            AppendBytes(&bin, mesh.uvs[t].data(), 2);
+          }
+        },
+        34962);
+  } else if (colors) {
+    extra_view = add_view(
+        [&] {
+          for (int v : source) {
+            const std::uint8_t rgba[4] = {mesh.colors[v][0], mesh.colors[v][1], mesh.colors[v][2],
+                                          255};
+            AppendBytes(&bin, rgba, 4);
+          }
+        },
+        34962);
+  }
+  const int index_view =
+      add_view([&] { AppendBytes(&bin, indices.data(), indices.size()); }, 34963);
+  int image_view = -1;
+  if (textured) {
+    std::string encoded;
+    if (png == nullptr) {
+      Expected<std::string> bytes = internal::EncodePng(mesh.texture);
+      if (!bytes) {
+        return std::unexpected(bytes.error());
+      }
+      encoded = std::move(*bytes);
+      png = &encoded;
+    }
+    image_view = add_view([&] { bin += *png; }, 0);
+  }
+
+  std::string json = R"({"asset":{"version":"2.0","generator":"revolve"},"scene":0,)";
+  if (mesh.faces.empty()) {
+    json += R"("scenes":[{}]})";
+  } else {
+    json +=
+        R"("scenes":[{"nodes":[0]}],"nodes":[{"name":"model","mesh":0,)"
+        R"("rotation":[-0.7071067811865476,0,0,0.7071067811865476],"scale":[0.001,0.001,0.001]}],)";
+    json += R"("meshes":[{"name":"model","primitives":[{"attributes":{"POSITION":0,"NORMAL":1)";
+    if (textured) {
+      json += R"(,"TEXCOORD_0":2)";
+    } else if (colors) {
+      json += R"(,"COLOR_0":2)";
+    }
+    json += fmt::format(R"(}},"indices":{},"material":0,"mode":4}}]}}],)", extra_view >= 0 ? 3 : 2);
+    json += fmt::format(R"("materials":[{{"name":"{}","pbrMetallicRoughness":{{)", kMaterialName);
+    json += textured ? R"("baseColorTexture":{"index":0},)"
+                     : (colors ? "" : R"("baseColorFactor":[0.8,0.8,0.8,1],)");
+    json += R"("metallicFactor":0,"roughnessFactor":1}}],)";
+    if (textured) {
+      json += fmt::format(
+          R"("textures":[{{"sampler":0,"source":0}}],)"
+          R"("samplers":[{{"magFilter":9729,"minFilter":9729,"wrapS":33071,"wrapT":33071}}],)"
+          R"("images":[{{"bufferView":{},"mimeType":"image/png"}}],)",
+          image_view);
+    }
+    json += R"("accessors":[)";
+    json +=
+        fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3","min":[)",
+                    position_view, n);
+    for (int k = 0; k < 3; ++k) {
+      if (k > 0) json += ',';
+      AppendExact(&json, lo[k]);
+    }
+    json += R"(],"max":[)";
+    for (int k = 0; k < 3; ++k) {
+      if (k > 0) json += ',';
+      AppendExact(&json, hi[k]);
+    }
+    json += "]},";
+    json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3"}},)",
+                        normal_view, n);
+    if (textured) {
+      json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC2"}},)",
+                          extra_view, n);
+    } else if (colors) {
+      json += fmt::format(
+          R"({{"bufferView":{},"componentType":5121,"normalized":true,"count":{},"type":"VEC4"}},)",
+          extra_view, n);
+    }
+    json += fmt::format(R"({{"bufferView":{},"componentType":5125,"count":{},"type":"SCALAR"}}],)",
+                        index_view, indices.size());
+    json += R"("bufferViews":[)";
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      if (i > 0) json += ',';
+      json += fmt::format(R"({{"buffer":0,"byteOffset":{},"byteLength":{})", views[i].offset,
+                          views[i].length);
+      if (views[i].target != 0) json += fmt::format(R"(,"target":{})", views[i].target);
+      json += '}';
+    }
+    json += fmt::format(R"(],"buffers":[{{"byteLength":{}}}]}})", bin.size());
+  }
+  Pad4(&json, ' ');
+
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
+  const bool has_bin = !bin.empty();
+  const std::uint32_t total =
+      static_cast<std::uint32_t>(12 + 8 + json.size() + (has_bin ? 8 + bin.size() : 0));
+  file.AppendRaw(std::uint32_t{0x46546C67});  // "glTF"
+  file.AppendRaw(std::uint32_t{2});
+  file.AppendRaw(total);
+  file.AppendRaw(static_cast<std::uint32_t>(json.size()));
+  file.AppendRaw(std::uint32_t{0x4E4F534A});  // "JSON"
+  file.Append(json);
+  if (has_bin) {
+    file.AppendRaw(static_cast<std::uint32_t>(bin.size()));
+    file.AppendRaw(std::uint32_t{0x004E4942});  // "BIN\0"
+    file.Append(bin);
+  }
+  return file.Commit();
+}
+
+}  // namespace internal
+
+Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
+  return internal::WriteObj(mesh, path, nullptr);
+}
+
+Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
+  return internal::WriteGlb(mesh, path, nullptr);
+}
+
+std::size_t GlbVertexCount(const Mesh& mesh) {
+  if (!mesh.HasTexture()) {
+    return mesh.vertices.size();
+  }
+  std::vector<std::uint64_t> pairs;
+  pairs.reserve(mesh.faces.size() * 3);
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      pairs.push_back((std::uint64_t(std::uint32_t(mesh.faces[i][c])) << 32) |
+                      std::uint32_t(mesh.uv_faces[i][c]));
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return static_cast<std::size_t>(std::unique(pairs.begin(), pairs.end()) - pairs.begin());
+}
+
+Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
+  std::string header = "revolve binary STL: object frame, millimetres, z up";
+  header.resize(80, ' ');
+  file.Append(header);
+  file.AppendRaw(static_cast<std::uint32_t>(mesh.faces.size()));
+  std::string record(50, '\0');
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    const Eigen::Vector3f normal = FaceNormal(mesh, f);
+    std::memcpy(record.data(), normal.data(), 12);
+    for (int c = 0; c < 3; ++c) {
+      std::memcpy(record.data() + 12 + 12 * c, mesh.vertices[f[c]].data(), 12);
+    }
+    file.Append(record);  // the last 2 bytes (attribute count) stay 0
+  }
+  return file.Commit();
+}
+
+Expected<Mesh> ReadStl(const fs::path& path) {
+  Expected<std::string> content = ReadWholeFile(path);
+  if (!content) {
+    return std::unexpected(content.error());
+  }
+  const std::string& bytes = *content;
+  if (bytes.size() < 84) {
+    return std::unexpected(BadFile(path, "too short for a binary STL"));
+  }
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  if (bytes.size() != 84 + std::size_t{count} * 50) {
+    return std::unexpected(
+        BadFile(path, fmt::format("binary STL of {} triangles must be {} bytes, not {}", count,
+                                  84 + std::size_t{count} * 50, bytes.size())));
+  }
+  Mesh mesh;
+  mesh.vertices.reserve(std::size_t{count} * 3);
+  mesh.faces.reserve(count);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const char* record = bytes.data() + 84 + std::size_t{i} * 50;
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Vector3f v;
+      std::memcpy(v.data(), record + 12 + 12 * c, 12);
+      mesh.vertices.push_back(v);
+    }
+    const int base = static_cast<int>(3 * i);
+    mesh.faces.emplace_back(base, base + 1, base + 2);
+  }
+  return mesh;
+}
+
+Expected<Mesh> ReadObj(const fs::path& path) {
+  Expected<std::string> content = ReadWholeFile(path);
+  if (!content) {
+    return std::unexpected(content.error());
+  }
+  Mesh mesh;
+  std::vector<Eigen::Vector3f> colors;
+  std::string_view text = *content;
+  int line_number = 0;
+  std::vector<int> polygon;
+  std::vector<int> uv_polygon;
+  auto bad = [&](std::string_view what) {
+    return std::unexpected(BadFile(path, fmt::format("line {}: {}", line_number, what)));
+  };
+  while (!text.empty()) {
+    const std::size_t end = std::min(text.find('\n'), text.size());
+    std::string_view line = text.substr(0, end);
+    text.remove_prefix(std::min(end + 1, text.size()));
+    ++line_number;
+    auto next_word = [&line]() {
+      while (!line.empty() &&
+             (line.front() == ' ' || line.front() == '\t' || line.front() == '\r')) {
+        line.remove_prefix(1);
+      }
+      std::size_t n = 0;
+      while (n < line.size() && line[n] != ' ' && line[n] != '\t' && line[n] != '\r') {
+        ++n;
+      }
+      const std::string_view word = line.substr(0, n);
+      line.remove_prefix(n);
+      return word;
+    };
+    auto read_floats = [&](float* out, int count) {
+      for (int i = 0; i < count; ++i) {
+        const std::string_view w = next_word();
+        if (w.empty() || std::from_chars(w.data(), w.data() + w.size(), out[i]).ec != std::errc()) {
+          return i;
+        }
+      }
+      return count;
+    };
+    const std::string_view keyword = next_word();
+    if (keyword == "v") {
+      float values[6];
+      const int got = read_floats(values, 6);
+      if (got < 3) {
+        return bad("a vertex needs x y z");
+      }
+      mesh.vertices.emplace_back(values[0], values[1], values[2]);
+      if (got == 6) {
+        colors.emplace_back(values[3], values[4], values[5]);
+      }
+    } else if (keyword == "vt") {
+      float values[2];
+      if (read_floats(values, 2) < 2) {
+        return bad("a texture coordinate needs u v");
+      }
+      mesh.uvs.emplace_back(values[0], 1.0f - values[1]);
+    } else if (keyword == "f") {
+      polygon.clear();
+      uv_polygon.clear();
+      for (std::string_view corner = next_word(); !corner.empty(); corner = next_word()) {
+        int indices[2] = {0, 0};
+        for (int part = 0; part < 2 && !corner.empty(); ++part) {
+          const std::size_t slash = std::min(corner.find('/'), corner.size());
+          const std::string_view number = corner.substr(0, slash);
+          if (!number.empty() &&
+              std::from_chars(number.data(), number.data() + number.size(), indices[part]).ec !=
+                  std::errc()) {
+            return bad("malformed face corner");
+          }
+          corner.remove_prefix(std::min(slash + 1, corner.size()));
+        }
+        const int count[2] = {static_cast<int>(mesh.vertices.size()),
+                              static_cast<int>(mesh.uvs.size())};
+        for (int part = 0; part < 2; ++part) {
+          indices[part] = indices[part] < 0 ? count[part] + indices[part] : indices[part] - 1;
+        }
+        if (indices[0] < 0 || indices[0] >= count[0]) {
+          return bad("face vertex index out of range");
+        }
+        polygon.push_back(indices[0]);
+        if (indices[1] >= 0 && indices[1] < count[1]) {
+          uv_polygon.push_back(indices[1]);
+        }
+      }
+      if (polygon.size() < 3) {
+        return bad("a face needs 3 corners");
+      }
+      const bool with_uv = uv_polygon.size() == polygon.size();
+      for (std::size_t i = 1; i + 1 < polygon.size(); ++i) {
+        mesh.faces.emplace_back(polygon[0], polygon[i], polygon[i + 1]);
+        if (with_uv) {
+          mesh.uv_faces.emplace_back(uv_polygon[0], uv_polygon[i], uv_polygon[i + 1]);
+        }
+      }
+    }
+  }
+  if (mesh.uv_faces.size() != mesh.faces.size()) {
+    mesh.uv_faces.clear();
+  }
+  if (colors.size() == mesh.vertices.size()) {
+    for (const Eigen::Vector3f& c : colors) {
+      mesh.colors.emplace_back(
+          static_cast<std::uint8_t>(std::clamp(std::lround(c.x() * 255.0f), 0L, 255L)),
+          static_cast<std::uint8_t>(std::clamp(std::lround(c.y() * 255.0f), 0L, 255L)),
+          static_cast<std::uint8_t>(std::clamp(std::lround(c.z() * 255.0f), 0L, 255L)));
+    }
+  }
+  return mesh;
+}
+
+}  // namespace revolve::reconstruct

@@ -1,0 +1,805 @@
+#include "reconstruct/texture/texture.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <fmt/format.h>
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+
+namespace revolve::reconstruct {
+namespace {
+
+constexpr int kChartMarginPx = 2;  // image pixels around a chart's rectangle
+constexpr int kSmoothingPasses = 3;
+constexpr float kNeighbourBonus = 0.1f;
+constexpr int kNormalSmoothingPasses = 6;
+constexpr int kCandidates = 3;  // views ranked per face and vertex
+const Color kUnseenColor(128, 128, 128);
+
+// One view's projection, in float for speed.
+struct ViewGeometry {
+  Eigen::Matrix<float, 3, 4> p;
+  bool affine = false;
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();     // pinhole centre
+  Eigen::Vector3f direction = Eigen::Vector3f::Zero();  // affine: toward the camera
+  Eigen::Vector4f depth_row = Eigen::Vector4f::Zero();  // depth (mm) = depth_row . [X; 1]
+  int width = 0;
+  int height = 0;
+
+  explicit ViewGeometry(const View& view) : width(view.width_px), height(view.height_px) {
+    p = view.pixel_from_object.cast<float>();
+    affine = view.IsAffine();
+    const Eigen::Matrix3d m = view.pixel_from_object.leftCols<3>();
+    if (affine) {
+      direction = view.DirectionToCamera(Eigen::Vector3d::Zero()).cast<float>();
+      depth_row << -direction, 0.0f;
+    } else {
+      centre = (-m.inverse() * view.pixel_from_object.col(3)).cast<float>();
+      const double scale = m.row(2).norm();
+      depth_row = (view.pixel_from_object.row(2) / scale).transpose().cast<float>();
+    }
+  }
+
+  // Pixel of x; false behind the camera.
+  bool Project(const Eigen::Vector3f& x, float* u, float* v) const {
+    const Eigen::Vector3f h = p.leftCols<3>() * x + p.col(3);
+    if (!(h.z() > 0.0f)) {
+      return false;
+    }
+    *u = h.x() / h.z();
+    *v = h.y() / h.z();
+    return true;
+  }
+  float Depth(const Eigen::Vector3f& x) const { return depth_row.head<3>().dot(x) + depth_row[3]; }
+  Eigen::Vector3f ToCamera(const Eigen::Vector3f& x) const {
+    return affine ? direction : Eigen::Vector3f((centre - x).normalized());
+  }
+  bool InImage(float u, float v) const {
+    return u >= -0.5f && v >= -0.5f && u < width - 0.5f && v < height - 0.5f;
+  }
+};
+
+// The nearest depth of the vertices facing the camera in each cell of cell_px x cell_px pixels.
+class DepthCells {
+ public:
+  DepthCells(int width, int height, int cell_px)
+      : cell_(static_cast<float>(cell_px)),
+        cols_((width + cell_px - 1) / cell_px + 1),
+        rows_((height + cell_px - 1) / cell_px + 1),
+        depth_(static_cast<std::size_t>(cols_) * rows_) {}
+  void Clear() { std::fill(depth_.begin(), depth_.end(), std::numeric_limits<float>::infinity()); }
+  void Splat(float u, float v, float depth) {
+    const int c = Cell(u);
+    const int r = Cell(v);
+    if (c < 0 || r < 0 || c >= cols_ || r >= rows_) return;
+    float& cell = depth_[static_cast<std::size_t>(r) * cols_ + c];
+    cell = std::min(cell, depth);
+  }
+  float At(float u, float v) const {
+    const int c = std::clamp(Cell(u), 0, cols_ - 1);
+    const int r = std::clamp(Cell(v), 0, rows_ - 1);
+    return depth_[static_cast<std::size_t>(r) * cols_ + c];
+  }
+
+ private:
+  int Cell(float px) const { return static_cast<int>(std::floor((px + 0.5f) / cell_)); }
+
+  float cell_;
+  int cols_;
+  int rows_;
+  std::vector<float> depth_;
+};
+
+Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
+  const float x = std::clamp(u, 0.0f, static_cast<float>(bgr.cols - 1));
+  const float y = std::clamp(v, 0.0f, static_cast<float>(bgr.rows - 1));
+  const int x0 = std::min(static_cast<int>(x), bgr.cols - 2 < 0 ? 0 : bgr.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), bgr.rows - 2 < 0 ? 0 : bgr.rows - 2);
+  const int x1 = std::min(x0 + 1, bgr.cols - 1);
+  const int y1 = std::min(y0 + 1, bgr.rows - 1);
+  const float fx = x - x0;
+  const float fy = y - y0;
+  const cv::Vec3b* r0 = bgr.ptr<cv::Vec3b>(y0);
+  const cv::Vec3b* r1 = bgr.ptr<cv::Vec3b>(y1);
+  Eigen::Vector3f out;
+  for (int k = 0; k < 3; ++k) {
+    const float top = r0[x0][k] + fx * (r0[x1][k] - r0[x0][k]);
+    const float bottom = r1[x0][k] + fx * (r1[x1][k] - r1[x0][k]);
+    out[k] = top + fy * (bottom - top);
+  }
+  return out;
+}
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int Find(int x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  }
+  void Unite(int a, int b) {
+    a = Find(a);
+    b = Find(b);
+    if (a != b) {
+      parent[std::max(a, b)] = std::min(a, b);
+    }
+  }
+};
+
+// The (up to 3) faces sharing an edge with each face; -1 for a border edge.
+std::vector<std::array<int, 3>> FaceNeighbours(const Mesh& mesh) {
+  const int nv = static_cast<int>(mesh.vertices.size());
+  const int nf = static_cast<int>(mesh.faces.size());
+  std::vector<int> start(nv + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int c = 0; c < 3; ++c) ++start[f[c] + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<int> faces_of(start.back());
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (int i = 0; i < nf; ++i) {
+    for (int c = 0; c < 3; ++c) faces_of[fill[mesh.faces[i][c]]++] = i;
+  }
+  std::vector<std::array<int, 3>> neighbours(nf, {-1, -1, -1});
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    for (int c = 0; c < 3; ++c) {
+      const int a = f[c];
+      const int b = f[(c + 1) % 3];
+      for (int k = start[a]; k < start[a + 1]; ++k) {
+        const int g = faces_of[k];
+        if (g == i) continue;
+        const Eigen::Vector3i& h = mesh.faces[g];
+        if (h[0] == b || h[1] == b || h[2] == b) {
+          neighbours[i][c] = g;
+          break;
+        }
+      }
+    }
+  }
+  return neighbours;
+}
+
+struct Rect {
+  int x = 0, y = 0, w = 0, h = 0;
+};
+
+// Shelf packing of `sizes` (w, h) into a strip `width` wide; returns the height used, or -1
+// when a rectangle is wider than the strip.
+int PackShelves(const std::vector<Rect>& sizes, int width, std::vector<Rect>* placed) {
+  std::vector<int> order(sizes.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return sizes[a].h > sizes[b].h; });
+  placed->assign(sizes.size(), Rect{});
+  int x = 0, y = 0, shelf = 0;
+  for (int i : order) {
+    const Rect& s = sizes[i];
+    if (s.w > width) return -1;
+    if (x + s.w > width) {
+      y += shelf;
+      x = 0;
+      shelf = 0;
+    }
+    (*placed)[i] = Rect{x, y, s.w, s.h};
+    x += s.w;
+    shelf = std::max(shelf, s.h);
+  }
+  return y + shelf;
+}
+
+}  // namespace
+
+Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
+                                   const std::vector<cv::Mat>& images,
+                                   const TextureOptions& options) {
+  if (views.size() != images.size()) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{} views but {} images", views.size(), images.size()));
+  }
+  if (options.texture_size_px < 64 || options.texture_size_px > 16384) {
+    return MakeError(ErrorCode::kBadInput, fmt::format("texture size {} px is out of range "
+                                                       "[64, 16384]",
+                                                       options.texture_size_px));
+  }
+  for (std::size_t k = 0; k < views.size(); ++k) {
+    if (!images[k].empty() && (images[k].type() != CV_8UC3 || images[k].cols != views[k].width_px ||
+                               images[k].rows != views[k].height_px)) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("image {} must be CV_8UC3 {}x{} (its view's size)", k,
+                                   views[k].width_px, views[k].height_px));
+    }
+  }
+  TextureStats stats;
+  const int nv = static_cast<int>(mesh->vertices.size());
+  const int nf = static_cast<int>(mesh->faces.size());
+  if (nf == 0) {
+    return stats;
+  }
+  const std::vector<Eigen::Vector3f>& vertices = mesh->vertices;
+
+  // Per-face unit normals and centroids (structure of arrays for the per-view sweeps), vertex
+  // normals, and the mesh's scale.
+  std::vector<float> fnx(nf), fny(nf), fnz(nf);
+  std::vector<Eigen::Vector3f> centroid(nf);
+  std::vector<Eigen::Vector3f> vertex_normal(nv, Eigen::Vector3f::Zero());
+  double edge_sum = 0.0;
+  Eigen::Vector3f lo = vertices[mesh->faces[0][0]];
+  Eigen::Vector3f hi = lo;
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Vector3i& f = mesh->faces[i];
+    const Eigen::Vector3f& a = vertices[f[0]];
+    const Eigen::Vector3f& b = vertices[f[1]];
+    const Eigen::Vector3f& c = vertices[f[2]];
+    const Eigen::Vector3f n = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) vertex_normal[f[k]] += n;
+    const float length = n.norm();
+    const Eigen::Vector3f unit =
+        length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+    fnx[i] = unit.x();
+    fny[i] = unit.y();
+    fnz[i] = unit.z();
+    centroid[i] = (a + b + c) / 3.0f;
+    edge_sum += (b - a).norm();
+    lo = lo.cwiseMin(a);
+    hi = hi.cwiseMax(a);
+  }
+  for (Eigen::Vector3f& n : vertex_normal) {
+    const float length = n.norm();
+    n = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+  }
+  const float mean_edge_mm = static_cast<float>(edge_sum / nf);
+  const Eigen::Vector3f mesh_centre = 0.5f * (lo + hi);
+  const float mesh_radius = 0.5f * (hi - lo).norm();
+  const float cos_min = static_cast<float>(std::cos(options.max_angle_deg * M_PI / 180.0));
+  const float max_tan =
+      std::sqrt(std::max(0.0f, 1.0f - cos_min * cos_min)) / std::max(cos_min, 0.05f);
+  const std::vector<std::array<int, 3>> neighbours =
+      options.atlas ? FaceNeighbours(*mesh) : std::vector<std::array<int, 3>>();
+
+  // Smoothed face normals choose the views: the voxel staircase of the silhouettes tilts single
+  // facets, and views chosen per raw facet would shatter the charts.
+  // Start from the mean of the corners' (area-weighted) normals: already two rings wide.
+  std::vector<float> snx(nf), sny(nf), snz(nf);
+  for (int i = 0; i < nf && options.atlas; ++i) {
+    const Eigen::Vector3i& f = mesh->faces[i];
+    const Eigen::Vector3f n =
+        (vertex_normal[f[0]] + vertex_normal[f[1]] + vertex_normal[f[2]]).normalized();
+    snx[i] = n.x();
+    sny[i] = n.y();
+    snz[i] = n.z();
+  }
+  {
+    std::vector<float> tx(nf), ty(nf), tz(nf);
+    for (int pass = 0; options.atlas && pass < kNormalSmoothingPasses; ++pass) {
+      for (int i = 0; i < nf; ++i) {
+        float x = snx[i], y = sny[i], z = snz[i];
+        for (int nb : neighbours[i]) {
+          if (nb < 0) continue;
+          x += snx[nb];
+          y += sny[nb];
+          z += snz[nb];
+        }
+        const float length = std::sqrt(x * x + y * y + z * z);
+        const float inv = length > 0.0f ? 1.0f / length : 0.0f;
+        tx[i] = x * inv;
+        ty[i] = y * inv;
+        tz[i] = z * inv;
+      }
+      snx.swap(tx);
+      sny.swap(ty);
+      snz.swap(tz);
+    }
+  }
+
+  // Ranking: each face's and each vertex's kCandidates best views by the cosine to the
+  // direction from the mesh's centre to the camera (within the mesh's angular radius of the
+  // exact one); the exact cosine and visibility are then tested for these only.
+  const int nviews = static_cast<int>(views.size());
+  std::vector<ViewGeometry> geometry;
+  geometry.reserve(nviews);
+  for (const View& view : views) geometry.emplace_back(view);
+  std::vector<Eigen::Vector3f> view_direction(nviews);
+  std::vector<float> view_margin(nviews, 0.0f);
+  for (int k = 0; k < nviews; ++k) {
+    const ViewGeometry& g = geometry[k];
+    view_direction[k] = g.ToCamera(mesh_centre);
+    if (!g.affine) {
+      const float distance = (g.centre - mesh_centre).norm();
+      view_margin[k] =
+          distance > mesh_radius ? std::min(1.0f, 1.05f * mesh_radius / distance) : 2.0f;
+    }
+  }
+  struct Candidates {
+    std::array<float, kCandidates> score;
+    std::array<std::int16_t, kCandidates> view;
+  };
+  // The ranking is looked up: the sphere of directions is binned as a cube map, each bin holds
+  // the views ranked for its centre, and a normal takes its bin's views, rescored with itself.
+  constexpr int kBins = 48;  // per cube face side (under 2 degrees)
+  std::vector<Candidates> bins(6 * kBins * kBins);
+  for (int face = 0; face < 6; ++face) {
+    for (int bt = 0; bt < kBins; ++bt) {
+      for (int bs = 0; bs < kBins; ++bs) {
+        const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
+        const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
+        Eigen::Vector3f n;
+        const float sign = face & 1 ? -1.0f : 1.0f;
+        switch (face / 2) {
+          case 0:
+            n = Eigen::Vector3f(sign, a, b);
+            break;
+          case 1:
+            n = Eigen::Vector3f(a, sign, b);
+            break;
+          default:
+            n = Eigen::Vector3f(a, b, sign);
+            break;
+        }
+        n.normalize();
+        Candidates& c = bins[(face * kBins + bt) * kBins + bs];
+        c.score.fill(-2.0f);
+        c.view.fill(-1);
+        for (int k = 0; k < nviews; ++k) {
+          if (images[k].empty()) continue;
+          const float score = n.dot(view_direction[k]);
+          if (score <= c.score[kCandidates - 1]) continue;
+          int slot = kCandidates - 1;
+          while (slot > 0 && c.score[slot - 1] < score) {
+            c.score[slot] = c.score[slot - 1];
+            c.view[slot] = c.view[slot - 1];
+            --slot;
+          }
+          c.score[slot] = score;
+          c.view[slot] = static_cast<std::int16_t>(k);
+        }
+      }
+    }
+  }
+  auto bin_of = [&](float x, float y, float z) {
+    const float ax = std::abs(x), ay = std::abs(y), az = std::abs(z);
+    int face;
+    float a, b, m;
+    if (ax >= ay && ax >= az) {
+      face = x >= 0.0f ? 0 : 1, a = y, b = z, m = ax;
+    } else if (ay >= az) {
+      face = y >= 0.0f ? 2 : 3, a = x, b = z, m = ay;
+    } else {
+      face = z >= 0.0f ? 4 : 5, a = x, b = y, m = az;
+    }
+    const float inv = m > 0.0f ? 0.5f * kBins / m : 0.0f;
+    const int bs = std::clamp(static_cast<int>((a + m) * inv), 0, kBins - 1);
+    const int bt = std::clamp(static_cast<int>((b + m) * inv), 0, kBins - 1);
+    return (face * kBins + bt) * kBins + bs;
+  };
+  auto rank = [&](int count, const float* x, const float* y, const float* z) {
+    std::vector<Candidates> out(count);
+    for (int i = 0; i < count; ++i) {
+      Candidates& c = out[i];
+      c.score.fill(-2.0f);
+      c.view.fill(-1);
+      if (x[i] == 0.0f && y[i] == 0.0f && z[i] == 0.0f) continue;
+      const Candidates& bin = bins[bin_of(x[i], y[i], z[i])];
+      int n = 0;
+      for (int slot = 0; slot < kCandidates; ++slot) {
+        const int k = bin.view[slot];
+        if (k < 0) break;
+        const Eigen::Vector3f& d = view_direction[k];
+        const float score = x[i] * d.x() + y[i] * d.y() + z[i] * d.z();
+        if (score < cos_min - view_margin[k]) continue;
+        int at = n++;
+        while (at > 0 && c.score[at - 1] < score) {
+          c.score[at] = c.score[at - 1];
+          c.view[at] = c.view[at - 1];
+          --at;
+        }
+        c.score[at] = score;
+        c.view[at] = static_cast<std::int16_t>(k);
+      }
+    }
+    return out;
+  };
+
+  const std::vector<Candidates> face_candidates =
+      options.atlas ? rank(nf, snx.data(), sny.data(), snz.data()) : std::vector<Candidates>();
+  std::vector<Candidates> vertex_candidates;
+  if (options.vertex_colors) {
+    std::vector<float> vx(nv), vy(nv), vz(nv);
+    for (int i = 0; i < nv; ++i) {
+      vx[i] = vertex_normal[i].x();
+      vy[i] = vertex_normal[i].y();
+      vz[i] = vertex_normal[i].z();
+    }
+    vertex_candidates = rank(nv, vx.data(), vy.data(), vz.data());
+  }
+  // Per view, the faces and vertices it is a candidate for (slot in the low bits).
+  auto by_view = [&](const std::vector<Candidates>& candidates) {
+    std::vector<int> start(nviews + 1, 0);
+    for (const Candidates& c : candidates) {
+      for (int s = 0; s < kCandidates; ++s) {
+        if (c.view[s] >= 0) ++start[c.view[s] + 1];
+      }
+    }
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    std::vector<std::int64_t> entries(start.back());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+      for (int s = 0; s < kCandidates; ++s) {
+        const int k = candidates[i].view[s];
+        if (k >= 0) entries[fill[k]++] = static_cast<std::int64_t>(i) * kCandidates + s;
+      }
+    }
+    return std::make_pair(std::move(start), std::move(entries));
+  };
+  const auto [face_start, face_entries] = by_view(face_candidates);
+  std::pair<std::vector<int>, std::vector<std::int64_t>> vertex_lists;
+  if (options.vertex_colors) vertex_lists = by_view(vertex_candidates);
+
+  // Per view: the depth of the surface facing the camera, splatted from the vertices into cells
+  // about 1.5 mean edges wide, then the visibility of the candidates.
+  std::vector<float> face_cos(options.atlas ? static_cast<std::size_t>(nf) * kCandidates : 0,
+                              -2.0f);  // -2: unseen
+  std::vector<Eigen::Vector3f> color_sum(options.vertex_colors ? nv : 0, Eigen::Vector3f::Zero());
+  std::vector<float> weight_sum(options.vertex_colors ? nv : 0, 0.0f);
+  for (int k = 0; k < nviews; ++k) {
+    if (images[k].empty()) continue;
+    ++stats.views_used;
+    const ViewGeometry& g = geometry[k];
+    const cv::Mat& image = images[k];
+    const Eigen::Vector3f& d = view_direction[k];
+    float mm_per_px = 1.0f;
+    {
+      float u0, v0, u1, v1;
+      if (g.Project(mesh_centre, &u0, &v0) &&
+          g.Project(mesh_centre + d.unitOrthogonal(), &u1, &v1)) {
+        mm_per_px = 1.0f / std::max(1e-6f, std::hypot(u1 - u0, v1 - v0));
+      }
+    }
+    const int cell_px =
+        std::clamp(static_cast<int>(std::ceil(1.5f * mean_edge_mm / mm_per_px)), 1, 16);
+    DepthCells cells(g.width, g.height, cell_px);
+    cells.Clear();
+    const float margin = view_margin[k];
+    for (int vi = 0; vi < nv; ++vi) {
+      const Eigen::Vector3f& n = vertex_normal[vi];
+      if (n.dot(d) < -margin) continue;
+      float u, v;
+      if (!g.Project(vertices[vi], &u, &v)) continue;
+      cells.Splat(u, v, g.Depth(vertices[vi]));
+    }
+    const float cell_mm = cell_px * mm_per_px;
+    auto visible = [&](const Eigen::Vector3f& x, float cos_angle, float* u, float* v) {
+      if (!g.Project(x, u, v) || !g.InImage(*u, *v)) return false;
+      const float tan_angle =
+          std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - cos_angle * cos_angle)) /
+                                std::max(cos_angle, 1e-3f));
+      const float tolerance = 2.0f * mean_edge_mm + 4.0f * cell_mm * tan_angle;
+      return g.Depth(x) <= cells.At(*u, *v) + tolerance;
+    };
+    for (int e = face_start[k]; e < face_start[k + 1]; ++e) {
+      const int i = static_cast<int>(face_entries[e] / kCandidates);
+      const int slot = static_cast<int>(face_entries[e] % kCandidates);
+      const Eigen::Vector3f to_camera = g.ToCamera(centroid[i]);
+      if (Eigen::Vector3f(fnx[i], fny[i], fnz[i]).dot(to_camera) <= 0.0f) continue;
+      const float c = Eigen::Vector3f(snx[i], sny[i], snz[i]).dot(to_camera);
+      float u, v;
+      if (c < cos_min || !visible(centroid[i], c, &u, &v)) continue;
+      face_cos[static_cast<std::size_t>(i) * kCandidates + slot] = c;
+    }
+    if (options.vertex_colors) {
+      for (int e = vertex_lists.first[k]; e < vertex_lists.first[k + 1]; ++e) {
+        const int vi = static_cast<int>(vertex_lists.second[e] / kCandidates);
+        const float c = vertex_normal[vi].dot(g.ToCamera(vertices[vi]));
+        float u, v;
+        if (c < cos_min || !visible(vertices[vi], c, &u, &v)) continue;
+        const float c2 = c * c;
+        const float c4 = c2 * c2;
+        const float w = c4 * c4;  // cos^8
+        color_sum[vi] += w * SampleBilinear(image, u, v);
+        weight_sum[vi] += w;
+      }
+    }
+  }
+
+  if (options.vertex_colors) {
+    mesh->colors.assign(nv, kUnseenColor);
+    for (int vi = 0; vi < nv; ++vi) {
+      if (weight_sum[vi] <= 0.0f) {
+        ++stats.unseen_vertices;
+        continue;
+      }
+      const Eigen::Vector3f bgr = color_sum[vi] / weight_sum[vi];
+      auto byte = [](float x) {
+        return static_cast<std::uint8_t>(std::clamp(std::lround(x), 0L, 255L));
+      };
+      mesh->colors[vi] = Color(byte(bgr[2]), byte(bgr[1]), byte(bgr[0]));
+    }
+  }
+  if (!options.atlas) {
+    return stats;
+  }
+
+  // Labels: the best visible candidate, then smoothed.
+  std::vector<int> label(nf, -1);
+  for (int i = 0; i < nf; ++i) {
+    float best = -2.0f;
+    for (int s = 0; s < kCandidates; ++s) {
+      const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
+      if (c > best) {
+        best = c;
+        label[i] = face_candidates[i].view[s];
+      }
+    }
+  }
+  // Iterated conditional modes: each face takes the visible candidate maximising its cosine plus
+  // kNeighbourBonus per edge-neighbour with the same view, so the small islands and ragged
+  // borders that nearly equal views leave behind merge into their surroundings.
+  {
+    std::vector<int> next(nf);
+    for (int pass = 0; pass < kSmoothingPasses; ++pass) {
+      for (int i = 0; i < nf; ++i) {
+        next[i] = label[i];
+        float best = -std::numeric_limits<float>::infinity();
+        for (int s = 0; s < kCandidates; ++s) {
+          const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
+          if (c <= -2.0f) continue;
+          const int view = face_candidates[i].view[s];
+          float score = c;
+          for (int nb : neighbours[i]) {
+            if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
+          }
+          if (score > best) {
+            best = score;
+            next[i] = view;
+          }
+        }
+      }
+      label.swap(next);
+    }
+  }
+
+  // Charts: connected faces with the same view.
+  UnionFind sets(nf);
+  for (int i = 0; i < nf; ++i) {
+    for (int nb : neighbours[i]) {
+      if (nb >= 0 && label[nb] == label[i] && label[i] >= 0) sets.Unite(i, nb);
+    }
+  }
+  std::vector<int> chart_of(nf, -1);
+  std::vector<int> chart_view;
+  for (int i = 0; i < nf; ++i) {
+    if (label[i] < 0) {
+      ++stats.unseen_faces;
+      continue;
+    }
+    const int root = sets.Find(i);
+    if (chart_of[root] < 0) {
+      chart_of[root] = static_cast<int>(chart_view.size());
+      chart_view.push_back(label[i]);
+    }
+    chart_of[i] = chart_of[root];
+  }
+  const int charts = static_cast<int>(chart_view.size());
+  stats.charts = charts;
+  // Faces grouped by chart (counting sort); the unseen faces last.
+  std::vector<int> chart_start(charts + 2, 0);
+  for (int i = 0; i < nf; ++i) ++chart_start[(chart_of[i] < 0 ? charts : chart_of[i]) + 1];
+  std::partial_sum(chart_start.begin(), chart_start.end(), chart_start.begin());
+  std::vector<int> faces_by_chart(nf);
+  {
+    std::vector<int> fill(chart_start.begin(), chart_start.end() - 1);
+    for (int i = 0; i < nf; ++i) faces_by_chart[fill[chart_of[i] < 0 ? charts : chart_of[i]]++] = i;
+  }
+
+  // Each chart's rectangle in its view (pixel ranges, inclusive, margin included).
+  std::vector<Rect> source(charts);
+  std::vector<int> chart_stamp(nv, -1);
+  std::vector<Eigen::Vector2f> chart_pixel(nv);
+  for (int c = 0; c < charts; ++c) {
+    const ViewGeometry& g = geometry[chart_view[c]];
+    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    for (int k = chart_start[c]; k < chart_start[c + 1]; ++k) {
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh->faces[faces_by_chart[k]][corner];
+        float u = 0.0f, v = 0.0f;
+        if (!g.Project(vertices[vi], &u, &v)) continue;
+        u0 = std::min(u0, u);
+        u1 = std::max(u1, u);
+        v0 = std::min(v0, v);
+        v1 = std::max(v1, v);
+      }
+    }
+    Rect r;
+    r.x = std::clamp(static_cast<int>(std::floor(u0)) - kChartMarginPx, 0, g.width - 1);
+    r.y = std::clamp(static_cast<int>(std::floor(v0)) - kChartMarginPx, 0, g.height - 1);
+    const int x1 = std::clamp(static_cast<int>(std::ceil(u1)) + kChartMarginPx, r.x, g.width - 1);
+    const int y1 = std::clamp(static_cast<int>(std::ceil(v1)) + kChartMarginPx, r.y, g.height - 1);
+    r.w = x1 - r.x + 1;
+    r.h = y1 - r.y + 1;
+    source[c] = r;
+  }
+
+  // Packing: the unseen patch is rectangle `charts`.
+  constexpr int kUnseenPatch = 4;
+  const int max_side = options.texture_size_px;
+  std::vector<Rect> placed;
+  std::vector<Rect> sizes(charts + 1);
+  double scale = 1.0;
+  int atlas_width = 0;
+  int atlas_height = 0;
+  for (int attempt = 0; attempt < 40 && atlas_width == 0; ++attempt) {
+    if (attempt > 0) scale *= 0.85;
+    int widest = kUnseenPatch;
+    for (int c = 0; c < charts; ++c) {
+      sizes[c].w = std::max(1, static_cast<int>(std::ceil(source[c].w * scale)));
+      sizes[c].h = std::max(1, static_cast<int>(std::ceil(source[c].h * scale)));
+      widest = std::max(widest, sizes[c].w);
+    }
+    sizes[charts] = Rect{0, 0, kUnseenPatch, kUnseenPatch};
+    for (int width = 64; width <= max_side; width *= 2) {
+      if (width < widest) continue;
+      const int height = PackShelves(sizes, width, &placed);
+      if (height > 0 && (height <= width || (width * 2 > max_side && height <= max_side))) {
+        atlas_width = width;
+        atlas_height = (height + 3) / 4 * 4;
+        break;
+      }
+    }
+  }
+  if (atlas_width == 0) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("cannot pack {} charts into a {} px atlas", charts, max_side));
+  }
+  stats.atlas_scale = scale;
+
+  cv::Mat atlas(atlas_height, atlas_width, CV_8UC3, cv::Scalar(0, 0, 0));
+  atlas(cv::Rect(placed[charts].x, placed[charts].y, kUnseenPatch, kUnseenPatch))
+      .setTo(cv::Scalar(kUnseenColor[2], kUnseenColor[1], kUnseenColor[0]));
+  for (int c = 0; c < charts; ++c) {
+    const Rect& s = source[c];
+    const Rect& d = placed[c];
+    const cv::Mat from = images[chart_view[c]](cv::Rect(s.x, s.y, s.w, s.h));
+    cv::Mat to = atlas(cv::Rect(d.x, d.y, d.w, d.h));
+    if (s.w == d.w && s.h == d.h) {
+      from.copyTo(to);
+    } else {
+      cv::resize(from, to, to.size(), 0, 0, cv::INTER_AREA);
+    }
+  }
+
+  // uvs: one per (chart, vertex), plus the unseen patch's centre.
+  std::vector<Eigen::Vector2f> uvs;
+  std::vector<Eigen::Vector3i> uv_faces(nf);
+  uvs.reserve(nv + nv / 4);
+  const float inv_w = 1.0f / atlas_width;
+  const float inv_h = 1.0f / atlas_height;
+  std::vector<int> uv_of(nv, -1);
+  for (int c = 0; c < charts; ++c) {
+    const ViewGeometry& g = geometry[chart_view[c]];
+    const Rect& s = source[c];
+    const Rect& d = placed[c];
+    const float sx = static_cast<float>(d.w) / s.w;
+    const float sy = static_cast<float>(d.h) / s.h;
+    for (int k = chart_start[c]; k < chart_start[c + 1]; ++k) {
+      const int fi = faces_by_chart[k];
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh->faces[fi][corner];
+        if (chart_stamp[vi] != c) {
+          chart_stamp[vi] = c;
+          float u = 0.0f, v = 0.0f;
+          if (!g.Project(vertices[vi], &u, &v)) {
+            u = static_cast<float>(s.x);
+            v = static_cast<float>(s.y);
+          }
+          // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
+          const float tx = d.x + (u - s.x + 0.5f) * sx;
+          const float ty = d.y + (v - s.y + 0.5f) * sy;
+          uv_of[vi] = static_cast<int>(uvs.size());
+          uvs.emplace_back(std::clamp(tx * inv_w, 0.0f, 1.0f), std::clamp(ty * inv_h, 0.0f, 1.0f));
+        }
+        uv_faces[fi][corner] = uv_of[vi];
+      }
+    }
+  }
+  if (chart_start[charts + 1] > chart_start[charts]) {
+    const int unseen_uv = static_cast<int>(uvs.size());
+    uvs.emplace_back((placed[charts].x + 0.5f * kUnseenPatch) * inv_w,
+                     (placed[charts].y + 0.5f * kUnseenPatch) * inv_h);
+    for (int k = chart_start[charts]; k < chart_start[charts + 1]; ++k) {
+      uv_faces[faces_by_chart[k]] = Eigen::Vector3i::Constant(unseen_uv);
+    }
+  }
+  mesh->uvs = std::move(uvs);
+  mesh->uv_faces = std::move(uv_faces);
+  mesh->texture = atlas;
+  return stats;
+}
+
+MeshRendering RenderMesh(const Mesh& mesh, const View& view) {
+  MeshRendering out;
+  out.image = cv::Mat(view.height_px, view.width_px, CV_8UC3, cv::Scalar(0, 0, 0));
+  out.coverage = cv::Mat(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
+  const ViewGeometry g(view);
+  const bool textured = mesh.HasTexture();
+  const bool colors = mesh.HasColors();
+  // Nearest first: q = 1 / w (pinhole) or -depth (affine), linear in the image.
+  cv::Mat nearest(view.height_px, view.width_px, CV_32F,
+                  cv::Scalar(-std::numeric_limits<float>::infinity()));
+  const Eigen::Matrix<double, 3, 4> p = view.pixel_from_object;
+  for (std::size_t fi = 0; fi < mesh.faces.size(); ++fi) {
+    const Eigen::Vector3i& f = mesh.faces[fi];
+    Eigen::Vector3d x[3], h[3];
+    double q[3];
+    bool in_front = true;
+    for (int c = 0; c < 3; ++c) {
+      x[c] = mesh.vertices[f[c]].cast<double>();
+      h[c] = p.leftCols<3>() * x[c] + p.col(3);
+      in_front = in_front && h[c].z() > 0.0;
+    }
+    if (!in_front) continue;
+    const Eigen::Vector3d n = (x[1] - x[0]).cross(x[2] - x[0]);
+    const Eigen::Vector3d centre = (x[0] + x[1] + x[2]) / 3.0;
+    if (!(n.dot(view.DirectionToCamera(centre)) > 0.0)) continue;
+    double u[3], v[3];
+    for (int c = 0; c < 3; ++c) {
+      u[c] = h[c].x() / h[c].z();
+      v[c] = h[c].y() / h[c].z();
+      q[c] = g.affine ? -static_cast<double>(g.Depth(mesh.vertices[f[c]])) : 1.0 / h[c].z();
+    }
+    const double area = (u[1] - u[0]) * (v[2] - v[0]) - (u[2] - u[0]) * (v[1] - v[0]);
+    if (area == 0.0) continue;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({u[0], u[1], u[2]}))));
+    const int x1 =
+        std::min(view.width_px - 1, static_cast<int>(std::floor(std::max({u[0], u[1], u[2]}))));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({v[0], v[1], v[2]}))));
+    const int y1 =
+        std::min(view.height_px - 1, static_cast<int>(std::floor(std::max({v[0], v[1], v[2]}))));
+    for (int py = y0; py <= y1; ++py) {
+      float* near_row = nearest.ptr<float>(py);
+      for (int px = x0; px <= x1; ++px) {
+        double l[3];
+        for (int c = 0; c < 3; ++c) {
+          const int a = (c + 1) % 3;
+          const int b = (c + 2) % 3;
+          l[c] = ((u[b] - u[a]) * (py - v[a]) - (px - u[a]) * (v[b] - v[a])) / area;
+        }
+        if (l[0] < 0.0 || l[1] < 0.0 || l[2] < 0.0) continue;
+        const double depth_q = l[0] * q[0] + l[1] * q[1] + l[2] * q[2];
+        if (!(depth_q > near_row[px])) continue;
+        near_row[px] = static_cast<float>(depth_q);
+        // Perspective-correct weights.
+        double w[3];
+        for (int c = 0; c < 3; ++c) w[c] = g.affine ? l[c] : l[c] * q[c];
+        const double sum = w[0] + w[1] + w[2];
+        for (double& wc : w) wc /= sum;
+        Eigen::Vector3f bgr(160.0f, 160.0f, 160.0f);
+        if (textured) {
+          Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+          for (int c = 0; c < 3; ++c) uv += w[c] * mesh.uvs[mesh.uv_faces[fi][c]].cast<double>();
+          bgr = SampleBilinear(mesh.texture, static_cast<float>(uv.x() * mesh.texture.cols - 0.5),
+                               static_cast<float>(uv.y() * mesh.texture.rows - 0.5));
+        } else if (colors) {
+          Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
+          for (int c = 0; c < 3; ++c)
+            rgb += static_cast<float>(w[c]) * mesh.colors[f[c]].cast<float>();
+          bgr = Eigen::Vector3f(rgb[2], rgb[1], rgb[0]);
+        }
+        cv::Vec3b& pixel = out.image.at<cv::Vec3b>(py, px);
+        for (int k = 0; k < 3; ++k) {
+          pixel[k] = static_cast<std::uint8_t>(std::clamp(std::lround(bgr[k]), 0L, 255L));
+        }
+        out.coverage.at<std::uint8_t>(py, px) = 255;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace revolve::reconstruct

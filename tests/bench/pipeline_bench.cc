@@ -1,0 +1,141 @@
+// From the last view to every model file written, at 256^3 on the station's default volume:
+// the synthetic camera's textured sphere (r = 40 mm, 36 frames of 768 x 576, true silhouettes),
+// one thread. Timed: integrating the last view, the surface (flat bottom at the plate), colour
+// (vertex colours and, with range(0) = 1, the texture atlas) and writing model.{ply, obj + mtl
+// (+ png), stl, glb, wrl}. The reference ("naive") integrates the last view per voxel and walks
+// every edge in every view. Compare CPU times: the machine may be shared.
+#include <unistd.h>
+
+#include <filesystem>
+
+#include <benchmark/benchmark.h>
+
+#include "capture/synthetic/render.h"
+#include "capture/synthetic/scene.h"
+#include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/texture/texture.h"
+#include "tests/reconstruct/sphere_scene.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kViews = 36;
+constexpr int kResolution = 256;
+
+struct Frames {
+  VoxelGrid grid;
+  std::vector<cv::Mat> images;
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+};
+
+const Frames& GetFrames() {
+  static const Frames frames = [] {
+    Frames f;
+    f.grid = *VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 120}, kResolution);
+    const capture::Scene scene = *capture::Scene::Create(capture::Shape::kSphere, 40.0, 80.0);
+    const Rig rig = testing::StationRig(450.0, 0.0, 40.0);
+    const capture::SimProjection projection(rig);
+    capture::RenderSettings settings;
+    for (int k = 0; k < kViews; ++k) {
+      const capture::RenderOutput out =
+          capture::RenderScene(scene, projection, 10.0 * k, settings, k);
+      f.images.push_back(out.image);
+      f.masks.push_back(out.true_mask);
+      f.views.push_back(testing::ViewOf(rig, 10.0 * k));
+    }
+    return f;
+  }();
+  return frames;
+}
+
+template <bool kNaive>
+void BM_LastViewToFiles(benchmark::State& state) {
+  const bool texture = state.range(0) != 0;
+  const Frames& f = GetFrames();
+  VisualHull before(f.grid);
+  for (int k = 0; k + 1 < kViews; ++k) (void)before.Integrate(f.masks[k], f.views[k]);
+  const fs::path dir =
+      fs::temp_directory_path() / ("revolve_pipeline_bench_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::size_t triangles = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    VisualHull hull = before;
+    state.ResumeTiming();
+    const int last = kViews - 1;
+    const Expected<void> integrated = kNaive ? hull.IntegrateNaive(f.masks[last], f.views[last])
+                                             : hull.Integrate(f.masks[last], f.views[last]);
+    benchmark::DoNotOptimize(integrated);
+    HullSurfaceOptions surface;
+    surface.clip_below_z_mm = 0.0;
+    surface.cull_views = !kNaive;
+    Mesh mesh = hull.ExtractSurface(surface);
+    TextureOptions options;
+    options.atlas = texture;
+    if (!TextureMesh(&mesh, f.views, f.images, options)) state.SkipWithError("texture failed");
+    if (!WriteModel(mesh, dir, "model", {"ply", "obj", "stl", "glb", "wrl"})) {
+      state.SkipWithError("write failed");
+    }
+    triangles = mesh.faces.size();
+  }
+  fs::remove_all(dir);
+  state.counters["triangles"] = static_cast<double>(triangles);
+}
+BENCHMARK(BM_LastViewToFiles<false>)
+    ->Name("LastViewToFiles/hierarchical")
+    ->ArgName("texture")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LastViewToFiles<true>)
+    ->Name("LastViewToFiles/naive")
+    ->ArgName("texture")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(2);
+
+// The stages of the hierarchical path, apart.
+void BM_Stage(benchmark::State& state) {
+  const Frames& f = GetFrames();
+  VisualHull hull(f.grid);
+  for (int k = 0; k < kViews; ++k) (void)hull.Integrate(f.masks[k], f.views[k]);
+  HullSurfaceOptions surface;
+  surface.clip_below_z_mm = 0.0;
+  const Mesh plain = hull.ExtractSurface(surface);
+  Mesh textured = plain;
+  (void)TextureMesh(&textured, f.views, f.images);
+  const fs::path dir =
+      fs::temp_directory_path() / ("revolve_stage_bench_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const int stage = static_cast<int>(state.range(0));
+  static const char* kFormats[] = {"ply", "obj", "stl", "glb", "wrl"};
+  for (auto _ : state) {
+    if (stage == 0) {
+      Mesh mesh = plain;
+      TextureOptions options;
+      options.atlas = false;
+      benchmark::DoNotOptimize(TextureMesh(&mesh, f.views, f.images, options));
+    } else if (stage == 1) {
+      Mesh mesh = plain;
+      benchmark::DoNotOptimize(TextureMesh(&mesh, f.views, f.images));
+    } else {
+      const std::string format = kFormats[(stage - 2) % 5];
+      benchmark::DoNotOptimize(WriteModel(stage < 7 ? plain : textured, dir, "m", {format}));
+    }
+  }
+  fs::remove_all(dir);
+}
+BENCHMARK(BM_Stage)->Name("Stage")->ArgName("stage")->DenseRange(0, 11)->Unit(
+    benchmark::kMillisecond);
+// Stages: 0 vertex colours, 1 colours + atlas, 2-6 write ply/obj/stl/glb/wrl without texture,
+// 7-11 the same with the texture (obj writes the PNG, glb embeds it).
+
+}  // namespace
+}  // namespace revolve::reconstruct
+
+BENCHMARK_MAIN();
