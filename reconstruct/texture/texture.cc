@@ -409,15 +409,20 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   const std::vector<Candidates> face_candidates =
       options.atlas ? rank(nf, snx.data(), sny.data(), snz.data()) : std::vector<Candidates>();
+  // Vertices and their normals as arrays, and their projections into the current view.
+  std::vector<float> vx(nv), vy(nv), vz(nv), vnx(nv), vny(nv), vnz(nv);
+  for (int i = 0; i < nv; ++i) {
+    vx[i] = vertices[i].x();
+    vy[i] = vertices[i].y();
+    vz[i] = vertices[i].z();
+    vnx[i] = vertex_normal[i].x();
+    vny[i] = vertex_normal[i].y();
+    vnz[i] = vertex_normal[i].z();
+  }
+  std::vector<float> pu(nv), pv(nv), pdepth(nv);
   std::vector<Candidates> vertex_candidates;
   if (options.vertex_colors) {
-    std::vector<float> vx(nv), vy(nv), vz(nv);
-    for (int i = 0; i < nv; ++i) {
-      vx[i] = vertex_normal[i].x();
-      vy[i] = vertex_normal[i].y();
-      vz[i] = vertex_normal[i].z();
-    }
-    vertex_candidates = rank(nv, vx.data(), vy.data(), vz.data());
+    vertex_candidates = rank(nv, vnx.data(), vny.data(), vnz.data());
   }
   // Per view, the faces and vertices it is a candidate for (slot in the low bits).
   auto by_view = [&](const std::vector<Candidates>& candidates) {
@@ -467,12 +472,28 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     DepthCells cells(g.width, g.height, cell_px);
     cells.Clear();
     const float margin = view_margin[k];
-    for (int vi = 0; vi < nv; ++vi) {
-      const Eigen::Vector3f& n = vertex_normal[vi];
-      if (n.dot(d) < -margin) continue;
-      float u, v;
-      if (!g.Project(vertices[vi], &u, &v)) continue;
-      cells.Splat(u, v, g.Depth(vertices[vi]));
+    // Projection and facing of every vertex in straight loops over the arrays (vectorised),
+    // then the splats.
+    {
+      const Eigen::Matrix<float, 3, 4>& p = g.p;
+      const Eigen::Vector4f& r = g.depth_row;
+      const float dx = d.x(), dy = d.y(), dz = d.z();
+      for (int i = 0; i < nv; ++i) {
+        const float x = vx[i], y = vy[i], z = vz[i];
+        const float hw = p(2, 0) * x + p(2, 1) * y + p(2, 2) * z + p(2, 3);
+        const float facing = vnx[i] * dx + vny[i] * dy + vnz[i] * dz;
+        const bool use = hw > 0.0f && facing >= -margin;
+        const float inv = use ? 1.0f / hw : 0.0f;
+        pu[i] = (p(0, 0) * x + p(0, 1) * y + p(0, 2) * z + p(0, 3)) * inv;
+        pv[i] = (p(1, 0) * x + p(1, 1) * y + p(1, 2) * z + p(1, 3)) * inv;
+        pdepth[i] =
+            use ? r[0] * x + r[1] * y + r[2] * z + r[3] : std::numeric_limits<float>::infinity();
+      }
+      for (int i = 0; i < nv; ++i) {
+        if (pdepth[i] != std::numeric_limits<float>::infinity()) {
+          cells.Splat(pu[i], pv[i], pdepth[i]);
+        }
+      }
     }
     const float cell_mm = cell_px * mm_per_px;
     auto visible = [&](const Eigen::Vector3f& x, float cos_angle, float* u, float* v) {
