@@ -4,6 +4,8 @@
 
 #include "station/control_commands.h"
 #include "station/reconstruct_command.h"
+#include "station/reconstruct_images_command.h"
+#include "station/scan_command.h"
 
 namespace revolve::station {
 namespace {
@@ -33,14 +35,39 @@ class StationCommandsImpl final : public StationCommands {
     list_ = app.add_subcommand("list", "List the scans in revolved's scans folder");
     client_options(list_);
 
-    reconstruct_ = app.add_subcommand("reconstruct",
-                                      "Rebuild the model of a scan folder from the stops it holds");
+    reconstruct_ = app.add_subcommand(
+        "reconstruct",
+        "Rebuild the model of a scan folder from the stops it holds, or make one from a folder "
+        "of images (--images)");
     reconstruct_->add_option("SCAN_DIR", recon_.scan_dir, "The scan folder");
-    reconstruct_->add_option("--out", recon_.out, "Model folder (default: SCAN_DIR/model)");
-    reconstruct_->add_option("--method", recon_.method, "hull (default: the scan's)");
-    reconstruct_->add_option("--resolution", recon_.resolution,
-                             "Voxels along the longest side, 16..1024 (default: the scan's)");
-    reconstruct_->add_option("--formats", formats_, "Model formats, e.g. ply,wrl")->delimiter(',');
+    reconstruct_->add_option("--out", out_,
+                             "Output folder (default: SCAN_DIR/model; required with --images)");
+    reconstruct_->add_option("--method", method_,
+                             "hull or meridian (--images only; default: the scan's, else hull)");
+    reconstruct_->add_option("--resolution", resolution_,
+                             "Voxels along the longest side, 16..1024 (default: the scan's, else "
+                             "192)");
+    reconstruct_->add_option("--formats", formats_, "Model formats: ply,obj,stl,glb,wrl")
+        ->delimiter(',');
+    reconstruct_->add_option("--images", images_.images,
+                             "A folder of images or silhouettes instead of a scan folder");
+    reconstruct_->add_option("--pattern", images_.pattern,
+                             "With --images: file names with {angle} or {index}, e.g. "
+                             "bw_shoe{angle}.tif (default: every image, sorted by name)");
+    reconstruct_->add_option("--step-deg", images_.step_deg,
+                             "With --images: degrees between views (default 10)");
+    reconstruct_->add_option("--cameras", cameras_,
+                             "With --images: per-view cameras (Middlebury *_par.txt or 3x4 "
+                             "matrices); default: the thesis's calibration-free geometry");
+    reconstruct_->add_option("--bbox", bbox_, "With --images: carving volume X0 Y0 Z0 X1 Y1 Z1")
+        ->expected(6);
+    reconstruct_->add_option("--threshold", images_.threshold,
+                             "With --images: photos on black: object where any channel exceeds "
+                             "this (0..254, default 20)");
+    reconstruct_->add_option("--row-step", images_.row_step_px,
+                             "With --images, meridian: feature points every k-th row (default 9)");
+    reconstruct_->add_flag("--both-sides", images_.both_sides,
+                           "With --images, meridian: both sides of the axis (T/2 images)");
 
     check_ = app.add_subcommand("check-config", "Validate a config and print the effective one");
     check_->add_option("FILE", check_file_, "The config file")->required();
@@ -55,25 +82,59 @@ class StationCommandsImpl final : public StationCommands {
     if (status_->parsed()) return RunStatusCommand(client_, out, err);
     if (watch_cmd_->parsed()) return RunWatchCommand(client_, follow_, stop, out, err);
     if (list_->parsed()) return RunListCommand(client_, out, err);
-    if (reconstruct_->parsed()) {
-      if (recon_.scan_dir.empty()) {
-        err << "revolve reconstruct: give the scan folder (SCAN_DIR)\n";
-        return 2;
-      }
-      if (!formats_.empty()) recon_.formats = formats_;
-      return RunReconstructCommand(recon_, stop, out, err);
-    }
+    if (reconstruct_->parsed()) return RunReconstruct(stop, out, err);
     if (check_->parsed()) return RunCheckConfigCommand(check_file_, out, err);
     return std::nullopt;
   }
 
  private:
+  int RunReconstruct(std::stop_token stop, std::ostream& out, std::ostream& err) {
+    if (!images_.images.empty()) {
+      if (!recon_.scan_dir.empty()) {
+        err << "revolve reconstruct: give either SCAN_DIR or --images DIR, not both\n";
+        return kExitUsage;
+      }
+      if (out_) images_.out = *out_;
+      if (method_) images_.method = *method_;
+      if (resolution_) images_.resolution = *resolution_;
+      if (!formats_.empty()) images_.formats = formats_;
+      if (cameras_) images_.cameras = *cameras_;
+      if (bbox_.size() == 6) {
+        images_.bbox =
+            std::array<double, 6>{bbox_[0], bbox_[1], bbox_[2], bbox_[3], bbox_[4], bbox_[5]};
+      }
+      return RunReconstructImages(images_, out, err);
+    }
+    if (recon_.scan_dir.empty()) {
+      err << "revolve reconstruct: give the scan folder (SCAN_DIR) or --images DIR\n";
+      return kExitUsage;
+    }
+    for (const char* option : {"--pattern", "--step-deg", "--cameras", "--bbox", "--threshold",
+                               "--row-step", "--both-sides"}) {
+      if (reconstruct_->count(option) > 0) {
+        err << "revolve reconstruct: " << option << " applies to --images only\n";
+        return kExitUsage;
+      }
+    }
+    if (out_) recon_.out = *out_;
+    if (method_) recon_.method = *method_;
+    if (resolution_) recon_.resolution = *resolution_;
+    if (!formats_.empty()) recon_.formats = formats_;
+    return RunReconstructCommand(recon_, stop, out, err);
+  }
+
   ClientOptions client_;
   std::optional<std::string> recipe_;
   std::optional<std::string> resume_;
   bool watch_ = false;
   bool follow_ = false;
   ReconstructCommandOptions recon_;
+  ReconstructImagesOptions images_;
+  std::optional<std::filesystem::path> out_;
+  std::optional<std::string> method_;
+  std::optional<int> resolution_;
+  std::optional<std::filesystem::path> cameras_;
+  std::vector<double> bbox_;
   std::vector<std::string> formats_;
   std::filesystem::path check_file_;
   CLI::App* start_ = nullptr;
