@@ -138,6 +138,8 @@ Expected<SyntheticOptions> ParseSynthetic(const config::Section& section) {
   r.Number("target_height_mm", &o.target_height_mm, kTargetHeightMmRange);
   r.String("projection", &o.projection, {"pinhole", "orthographic"});
   r.Number("axis_offset_px", &o.axis_offset_px, kAxisOffsetPxRange);
+  r.Number("roll_deg", &o.roll_deg, kRollDegRange);
+  r.Bool("known_geometry", &o.known_geometry);
   r.String("object", &o.object, {"sphere", "cylinder", "vase", "cone", "box", "torus", "mesh"});
   r.Number("radius_mm", &o.radius_mm, kObjectSizeMmRange);
   r.Number("height_mm", &o.height_mm, kObjectSizeMmRange);

@@ -112,6 +112,13 @@ struct SyntheticOptions {
   double target_height_mm = 50.0;
   std::string projection = "pinhole";  // pinhole | orthographic (magnification fx / distance)
   double axis_offset_px = 0.0;  // the axis appears this many pixels right of the middle column
+  // The camera rolled about its optical axis: the picture turns clockwise by this angle about the
+  // principal point (a camera not quite level; off the thesis's assumptions).
+  double roll_deg = 0.0;
+  // false hides the true rig (KnownRig, KnownView: nullopt) so that the camera behaves like a
+  // real one whose geometry must come from a calibration or the thesis's assumptions. The scene's
+  // truth (KnownScene) stays, for accuracy checks.
+  bool known_geometry = true;
   std::string object = "vase";  // sphere | cylinder | vase | cone | box | torus | mesh
   double radius_mm = 40.0;
   double height_mm = 100.0;

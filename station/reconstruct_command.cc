@@ -11,6 +11,7 @@
 #include "station/saved_stops.h"
 #include "station/scan_command.h"
 #include "station/scan_folder.h"
+#include "station/scan_geometry.h"
 #include "station/station_config.h"
 
 namespace revolve::station {
@@ -32,23 +33,21 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
   if (options.method) recon.method = *options.method;
   if (options.resolution) recon.resolution = *options.resolution;
   if (options.formats) recon.formats = *options.formats;
-  auto reconstructor = reconstruct::Create(recon);
-  if (!reconstructor) {
-    fmt::print(err, "revolve reconstruct: {}\n", reconstructor.error().message);
-    return kExitConfig;
-  }
   auto camera = capture::Create(config->camera, std::make_shared<SimulatedPlate>());
   if (!camera) {
     fmt::print(err, "revolve reconstruct: {}: {}\n", (dir / "scan.toml").string(),
                camera.error().message);
     return kExitConfig;
   }
-  if (!(*camera)->KnownView(0.0)) {
-    fmt::print(err,
-               "revolve reconstruct: {}: the camera \"{}\" has no known geometry (no calibration "
-               "yet)\n",
-               dir.string(), (*camera)->Describe());
-    return kExitFailed;
+  // The scan's own camera model: its copy of the calibration, the camera's geometry, or the
+  // thesis's (station/scan_geometry.h). Its frames and masks are already undistorted.
+  std::error_code ec;
+  const std::filesystem::path calibration_file =
+      std::filesystem::exists(dir / "calibration.toml", ec) ? dir / "calibration.toml" : "";
+  auto geometry = ScanGeometry::Create(recon, **camera, calibration_file);
+  if (!geometry) {
+    fmt::print(err, "revolve reconstruct: {}\n", geometry.error().message);
+    return kExitConfig;
   }
   std::vector<std::string> skipped;
   auto stops = ReadSavedStops(dir, *manifest, false, &skipped);
@@ -62,9 +61,10 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     return kExitFailed;
   }
   const int planned = manifest->value("stops_planned", 0);
-  fmt::print(out, "revolve reconstruct: {} ({}), {} of {} stops, {} at resolution {}\n",
+  fmt::print(out,
+             "revolve reconstruct: {} ({}), {} of {} stops, {} at resolution {}, {} geometry\n",
              dir.string(), manifest->value("state", std::string("unknown")), stops->size(), planned,
-             recon.method, recon.resolution);
+             recon.method, recon.resolution, ToString(geometry->source()));
   for (SavedStop& s : *stops) {
     if (stop.stop_requested()) {
       fmt::print(err, "revolve reconstruct: aborted\n");
@@ -72,21 +72,17 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     }
     cv::Mat frame = cv::imread((dir / s.frame_file).string(), cv::IMREAD_COLOR);
     if (frame.size() != s.mask.size()) frame.release();
-    View view = *(*camera)->KnownView(s.readback_deg);
-    view.width_px = s.mask.cols;
-    view.height_px = s.mask.rows;
-    if (auto integrated = (*reconstructor)->Integrate(s.mask, frame, view); !integrated) {
+    if (auto integrated = geometry->Integrate(s.mask, frame, s.readback_deg); !integrated) {
       fmt::print(err, "revolve reconstruct: stop {}: {}\n", s.index, integrated.error().message);
       return kExitFailed;
     }
   }
-  auto mesh = (*reconstructor)->Finish();
+  auto mesh = geometry->Finish();
   if (!mesh) {
     fmt::print(err, "revolve reconstruct: meshing: {}\n", mesh.error().message);
     return kExitFailed;
   }
   const std::filesystem::path out_dir = options.out ? *options.out : dir / "model";
-  std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
   auto files = reconstruct::WriteModel(*mesh, out_dir, "model", recon.formats);
   if (!files) {
@@ -96,9 +92,10 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
   const reconstruct::MeshStats stats = reconstruct::ComputeStats(*mesh);
   std::string names;
   for (const auto& f : *files) names += (names.empty() ? "" : ", ") + f.string();
-  fmt::print(out, "  model  {} ({} triangles, {}), volume {:.0f} mm^3\n", names,
-             stats.triangle_count, stats.closed ? "watertight" : "NOT watertight",
-             stats.volume_mm3);
+  const std::string unit = geometry->metric() ? "mm" : "px";
+  fmt::print(out, "  model  {} ({} triangles, {}), volume {:.0f} {}^3{}\n", names,
+             stats.triangle_count, stats.closed ? "watertight" : "NOT watertight", stats.volume_mm3,
+             unit, geometry->metric() ? "" : " (thesis mode: scale unknown)");
   if (static_cast<int>(stops->size()) < planned) {
     fmt::print(out,
                "  note   built from {} of {} stops: `revolve start --resume {}` captures the "

@@ -13,6 +13,7 @@
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
+#include "station/scan_geometry.h"
 
 namespace revolve::station {
 namespace {
@@ -301,29 +302,33 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   const auto scan_start = Clock::now();
   ScanResult result;
 
-  if (!devices_.camera->KnownView(0.0)) {
-    return MakeError(ErrorCode::kUnsupported,
-                     fmt::format("{}: the camera \"{}\" has no known geometry and this build has "
-                                 "no calibration yet; use the synthetic camera",
-                                 config_.origin, devices_.camera->Describe()));
+  // The camera model (station/scan_geometry.h): the calibration, the camera's own geometry, or
+  // the thesis's. A resumed scan keeps the calibration it started with.
+  std::filesystem::path calibration_file = config_.calibration.file;
+  std::error_code exists_error;
+  if (manifest_.contains("resumed") &&
+      std::filesystem::exists(folder_.dir() / "calibration.toml", exists_error)) {
+    calibration_file = folder_.dir() / "calibration.toml";
   }
-  auto reconstructor = reconstruct::Create(config_.reconstruct);
-  if (!reconstructor) return std::unexpected(reconstructor.error());
-  auto view_at = [this](double angle_deg, const cv::Mat& mask) {
-    View view = *devices_.camera->KnownView(angle_deg);
-    view.width_px = mask.cols;
-    view.height_px = mask.rows;
-    return view;
-  };
+  auto geometry = ScanGeometry::Create(config_.reconstruct, *devices_.camera, calibration_file);
+  if (!geometry) {
+    return std::unexpected(
+        calibration_file.empty()
+            ? geometry.error()
+            : WithContext(geometry.error(), fmt::format("{}: [calibration] file", config_.origin)));
+  }
+  if (geometry->calibration() && calibration_file != folder_.dir() / "calibration.toml") {
+    if (auto w = folder_.WriteText("calibration.toml", geometry->calibration_text()); !w) {
+      return std::unexpected(w.error());
+    }
+  }
 
   // A resumed scan: the saved stops first.
   std::map<int, cv::Mat> thumbnails;
   std::set<int> done;
   for (SavedStop& s : saved) {
     if (s.index < 0 || s.index >= scan.stops) continue;
-    if (auto integrated =
-            (*reconstructor)->Integrate(s.mask, s.frame, view_at(s.readback_deg, s.mask));
-        !integrated) {
+    if (auto integrated = geometry->Integrate(s.mask, s.frame, s.readback_deg); !integrated) {
       return std::unexpected(
           WithContext(integrated.error(), fmt::format("re-integrating saved stop {}", s.index)));
     }
@@ -342,6 +347,9 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
   auto format = devices_.camera->Start();
   if (!format) return std::unexpected(WithContext(format.error(), "starting the camera"));
+  if (auto size = geometry->CheckFrameSize(format->width_px, format->height_px); !size) {
+    return std::unexpected(size.error());
+  }
 
   cv::Mat background;
   if (devices_.segmenter->NeedsBackground()) {
@@ -351,7 +359,7 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
     if (!frame) {
       return std::unexpected(WithContext(frame.error(), "capturing the background frame"));
     }
-    background = frame->image;
+    background = geometry->Undistort(frame->image);
     if (auto w = folder_.WriteImage("frames/background.png", background); !w) {
       return std::unexpected(w.error());
     }
@@ -391,6 +399,8 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
     t = Clock::now();
     auto frame = CaptureWithRetries(stop, k, settled);
     if (!frame) return std::unexpected(frame.error());
+    // Segmented, integrated and saved as the views describe it.
+    frame->image = geometry->Undistort(frame->image);
     times_.capture_ms += MsSince(t);
 
     t = Clock::now();
@@ -408,9 +418,7 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
       return std::unexpected(e.error());
     }
     t = Clock::now();
-    if (auto integrated =
-            (*reconstructor)->Integrate(*mask, frame->image, view_at(state->angle_deg, *mask));
-        !integrated) {
+    if (auto integrated = geometry->Integrate(*mask, frame->image, state->angle_deg); !integrated) {
       return std::unexpected(
           WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
     }
@@ -458,7 +466,7 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
 
   if (auto e = Enter(ScanState::kMeshing); !e) return std::unexpected(e.error());
   t = Clock::now();
-  auto mesh = (*reconstructor)->Finish();
+  auto mesh = geometry->Finish();
   if (!mesh) return std::unexpected(WithContext(mesh.error(), "meshing"));
   times_.mesh_ms = MsSince(t);
   if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
@@ -487,8 +495,8 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   report["scan_id"] = scan_id_;
   report["recipe"] = config_.recipe;
   report["stops_done"] = result.stops_done;
-  report["units"] = "mm";
-  report["scale"] = "metric (simulated rig geometry)";
+  // units ("mm" | "px"), scale, camera model, calibration, silhouette axis.
+  report.update(geometry->ReportJson());
   report["model"] = {{"files", result.model_files},
                      {"vertices", stats.vertex_count},
                      {"triangles", stats.triangle_count},
@@ -500,7 +508,8 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
                      {"watertight", stats.closed},
                      {"consistently_oriented", stats.oriented}};
   report["times_ms"] = times_.ToJson();
-  if (auto truth = devices_.camera->KnownScene()) {
+  // The truth is in millimetres: not comparable with a thesis-mode model in pixels.
+  if (auto truth = devices_.camera->KnownScene(); truth && geometry->metric()) {
     report["accuracy"] = AccuracyJson(*mesh, stats, *truth);
   }
   if (auto w = folder_.WriteJson("report.json", report); !w) return std::unexpected(w.error());

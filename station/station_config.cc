@@ -310,14 +310,16 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document) {
     out = std::move(*parsed);
     return {};
   };
-  for (auto parsed : {section("scan", ParseScanOptions, cfg.scan),
-                      section("station", ParseStationOptions, cfg.station),
-                      section("daemon", ParseDaemonOptions, cfg.daemon),
-                      section("operator", ParseOperatorOptions, cfg.panel),
-                      section("turntable", turntable::ParseOptions, cfg.turntable),
-                      section("camera", capture::ParseOptions, cfg.camera),
-                      section("segment", capture::ParseSegmentOptions, cfg.segment),
-                      section("reconstruct", reconstruct::ParseOptions, cfg.reconstruct)}) {
+  for (auto parsed :
+       {section("scan", ParseScanOptions, cfg.scan),
+        section("station", ParseStationOptions, cfg.station),
+        section("daemon", ParseDaemonOptions, cfg.daemon),
+        section("operator", ParseOperatorOptions, cfg.panel),
+        section("turntable", turntable::ParseOptions, cfg.turntable),
+        section("camera", capture::ParseOptions, cfg.camera),
+        section("segment", capture::ParseSegmentOptions, cfg.segment),
+        section("reconstruct", reconstruct::ParseOptions, cfg.reconstruct),
+        section("calibration", calibrate::ParseCalibrationOptions, cfg.calibration)}) {
     if (!parsed) return std::unexpected(parsed.error());
   }
   Expected<config::Section> recipes_section = root.Child("recipes");

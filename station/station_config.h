@@ -1,5 +1,6 @@
 // The whole station's configuration: [scan], [station], [daemon], [operator], [recipes.*] plus
-// each module's own section. Every key, its unit, default and range: docs/station.md.
+// each module's own section ([calibration]: docs/calibration.md). Every key, its unit, default and
+// range: docs/station.md.
 #pragma once
 
 #include <cstdint>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "base/error.h"
+#include "calibrate/options.h"
 #include "capture/camera.h"
 #include "capture/segmenter.h"
 #include "config/config.h"
@@ -122,6 +124,9 @@ struct StationConfig {
   capture::CameraOptions camera;
   capture::SegmentOptions segment;
   reconstruct::ReconstructOptions reconstruct;
+  // [calibration]: the calibration scans use (`file`, resolved against the config file's folder;
+  // empty: none), the board and the gates of `revolve calibrate` (docs/calibration.md).
+  calibrate::CalibrationOptions calibration;
 };
 
 // Parses a whole document: every section, unknown tables and keys are errors naming

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <utility>
 
 #include <fmt/format.h>
@@ -61,6 +62,10 @@ Rig RigFromOptions(const SyntheticOptions& options) {
   rig.intrinsics.cx_px += options.axis_offset_px;
   rig.cam_from_table = CamFromTableLookingAtAxis(options.distance_mm, options.elevation_deg,
                                                  options.target_height_mm);
+  if (options.roll_deg != 0.0) {
+    rig.cam_from_table.prerotate(
+        Eigen::AngleAxisd(options.roll_deg * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()));
+  }
   return rig;
 }
 
@@ -137,6 +142,7 @@ Expected<void> CheckRanges(const SyntheticOptions& options) {
       {"elevation_deg", {options.elevation_deg, kElevationDegRange}},
       {"target_height_mm", {options.target_height_mm, kTargetHeightMmRange}},
       {"axis_offset_px", {options.axis_offset_px, kAxisOffsetPxRange}},
+      {"roll_deg", {options.roll_deg, kRollDegRange}},
       {"radius_mm", {options.radius_mm, kObjectSizeMmRange}},
       {"height_mm", {options.height_mm, kObjectSizeMmRange}},
       {"backdrop_grey", {options.backdrop_grey, kBackdropGreyRange}},
@@ -214,7 +220,7 @@ SyntheticCamera::SyntheticCamera(const SyntheticOptions& options, Scene scene,
       plate_(std::move(plate)) {}
 
 std::optional<Rig> SyntheticCamera::KnownRig() const {
-  if (projection_.orthographic) return std::nullopt;
+  if (projection_.orthographic || !options_.known_geometry) return std::nullopt;
   return projection_.rig;
 }
 
@@ -283,9 +289,10 @@ Expected<Frame> SyntheticCamera::Expose(Clock::time_point not_before, Clock::dur
 std::string SyntheticCamera::Describe() const {
   return fmt::format(
       "synthetic {}camera {}x{} hfov {:g} deg, {:g} mm from the axis at {:g} deg "
-      "elevation, seeing a {}",
+      "elevation, seeing a {}{}",
       projection_.orthographic ? "orthographic " : "", options_.width_px, options_.height_px,
-      options_.hfov_deg, options_.distance_mm, options_.elevation_deg, scene_.Describe());
+      options_.hfov_deg, options_.distance_mm, options_.elevation_deg, scene_.Describe(),
+      options_.known_geometry ? "" : " (geometry hidden)");
 }
 
 cv::Mat SyntheticCamera::Render(double plate_angle_deg, std::uint64_t sequence) const {

@@ -35,6 +35,7 @@ inline constexpr OptionRange kObjectSizeMmRange{0.1, 1e5};
 inline constexpr OptionRange kBackdropGreyRange{0, 255};
 inline constexpr OptionRange kNoiseSigmaRange{0.0, 100.0};
 inline constexpr OptionRange kAxisOffsetPxRange{-1e4, 1e4};
+inline constexpr OptionRange kRollDegRange{-180.0, 180.0};
 inline constexpr OptionRange kAlbedoRange{0.01, 1.0};
 inline constexpr OptionRange kPlateMmRange{0.0, 1e5};
 inline constexpr OptionRange kBlurSigmaPxRange{0.0, 50.0};
@@ -44,8 +45,8 @@ inline constexpr OptionRange kBlurSigmaPxRange{0.0, 50.0};
 Expected<Scene> SceneFromOptions(const SyntheticOptions& options);
 
 // The rig the options describe: Intrinsics::FromFieldOfView(width, height, hfov) with the
-// principal point moved right by axis_offset_px, and cam_from_table =
-// CamFromTableLookingAtAxis(distance, elevation, target_height).
+// principal point moved right by axis_offset_px, and cam_from_table = Rz(roll_deg) *
+// CamFromTableLookingAtAxis(distance, elevation, target_height) (the roll about the optical axis).
 Rig RigFromOptions(const SyntheticOptions& options);
 
 // RigFromOptions, orthographic when projection = "orthographic" (px_per_mm = fx / distance).
@@ -86,9 +87,12 @@ class SyntheticCamera final : public Camera {
   // Thread-safe; wakes a Capture waiting for not_before.
   void Stop() noexcept override;
 
-  // The pinhole rig; nullopt for the orthographic projection (use KnownView).
+  // The pinhole rig; nullopt for the orthographic projection (use KnownView) and with
+  // known_geometry = false.
   std::optional<Rig> KnownRig() const override;
+  // nullopt with known_geometry = false.
   std::optional<View> KnownView(double plate_angle_deg) const override {
+    if (!options_.known_geometry) return std::nullopt;
     return projection_.ViewAt(plate_angle_deg);
   }
   std::optional<SceneTruth> KnownScene() const override { return scene_.Truth(); }

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "station/apps/calibrate_commands.h"
 #include "station/apps/camera_commands.h"
 #include "station/apps/station_commands.h"
 #include "station/apps/turntable_commands.h"
@@ -55,6 +56,7 @@ int main(int argc, char** argv) {
   scan->add_option("--recipe", scan_options.recipe,
                    "Recipe of the config (default: [station] recipe)");
   auto camera_commands = revolve::station::AddCameraCommands(app);
+  auto calibrate_commands = revolve::station::AddCalibrateCommands(app);
 
   try {
     app.parse(argc, argv);
@@ -66,6 +68,9 @@ int main(int argc, char** argv) {
   if (auto code = turntable_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (auto code = station_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (auto code = camera_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
+  if (auto code = calibrate_commands->Run(signals.token(), std::cin, std::cout, std::cerr)) {
+    return *code;
+  }
   if (scan->parsed()) {
     return revolve::station::RunScanCommand(scan_options, signals.token(), std::cout, std::cerr);
   }
