@@ -338,6 +338,15 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
                                              std::vector<int>(plane_size, -1)};
   std::array<std::vector<int>, 2> y_edges = x_edges;
   std::vector<int> z_edges(plane_size, -1);
+  // The slots set in each of these planes, so a plane is reset by undoing them rather than by
+  // filling it (most cells of a layer are empty).
+  std::array<std::vector<std::int64_t>, 2> x_set;
+  std::array<std::vector<std::int64_t>, 2> y_set;
+  std::vector<std::int64_t> z_set;
+  auto reset = [](std::vector<int>* plane, std::vector<std::int64_t>* set) {
+    for (std::int64_t cell : *set) (*plane)[cell] = -1;
+    set->clear();
+  };
 
   // The cut edge of each vertex, in field coordinates; positions are placed after the pass.
   std::vector<GridEdge> cut_edges;
@@ -357,9 +366,11 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
     std::vector<int>& y_lo = y_edges[pz & 1];
     std::vector<int>& x_hi = x_edges[(pz + 1) & 1];
     std::vector<int>& y_hi = y_edges[(pz + 1) & 1];
-    std::fill(x_hi.begin(), x_hi.end(), -1);
-    std::fill(y_hi.begin(), y_hi.end(), -1);
-    std::fill(z_edges.begin(), z_edges.end(), -1);
+    std::vector<std::int64_t>& x_hi_set = x_set[(pz + 1) & 1];
+    std::vector<std::int64_t>& y_hi_set = y_set[(pz + 1) & 1];
+    reset(&x_hi, &x_hi_set);
+    reset(&y_hi, &y_hi_set);
+    reset(&z_edges, &z_set);
     for (int py = 0; py + 1 < n.y(); ++py) {
       const std::uint64_t* rows[4] = {padded.Row(py, pz), padded.Row(py + 1, pz),
                                       padded.Row(py, pz + 1), padded.Row(py + 1, pz + 1)};
@@ -400,14 +411,19 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
                 const Eigen::Vector3i p0(px + (c & 1), py + ((c >> 1) & 1), pz + ((c >> 2) & 1));
                 const std::int64_t cell = std::int64_t{p0.y()} * n.x() + p0.x();
                 int* slot = nullptr;
+                std::vector<std::int64_t>* set = nullptr;
                 if (edge.axis == 2) {
                   slot = &z_edges[cell];
+                  set = &z_set;
                 } else {
                   const bool hi = (c >> 2) & 1;
+                  const int parity = (pz + (hi ? 1 : 0)) & 1;
                   slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
+                  set = edge.axis == 0 ? &x_set[parity] : &y_set[parity];
                 }
                 if (*slot < 0) {
                   *slot = make_vertex(p0, edge.axis);
+                  set->push_back(cell);
                 }
                 local[e] = *slot;
               }

@@ -199,8 +199,10 @@ VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat&
       continue;
     }
     ++in_front;
-    const double u = h.x / h.w;
-    const double v = h.y / h.w;
+    // One division: x * (1 / w) differs from x / w by an ulp or two, far inside kRectMarginPx.
+    const double inv_w = 1.0 / h.w;
+    const double u = h.x * inv_w;
+    const double v = h.y * inv_w;
     u_min = std::min(u_min, u);
     u_max = std::max(u_max, u);
     v_min = std::min(v_min, v);

@@ -120,42 +120,118 @@ void AppendFloat(std::string* out, float value) {
 }
 
 void AppendInt(std::string* out, long long value) {
-  char buffer[24];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  out->append(buffer, result.ptr);
+  char buffer[kMaxNumberChars];
+  out->append(buffer, WriteInt(buffer, value));
 }
 
 void AppendFixed(std::string* out, float value, int decimals) {
-  static constexpr long long kPow10[] = {1,      10,      100,      1000,      10000,
-                                         100000, 1000000, 10000000, 100000000, 1000000000};
-  decimals = std::clamp(decimals, 0, 9);
-  const double scaled = std::round(static_cast<double>(value) * kPow10[decimals]);
-  if (!std::isfinite(scaled) || std::abs(scaled) > 1e17) {
-    AppendFloat(out, value);
-    return;
+  char buffer[kMaxNumberChars];
+  out->append(buffer, WriteFixed(buffer, value, decimals));
+}
+
+namespace {
+
+// Decimal digits of `value`, most significant first.
+char* WriteUnsigned(char* out, unsigned long long value) {
+  char digits[24];
+  int n = 0;
+  do {
+    digits[n++] = static_cast<char>('0' + value % 10);
+    value /= 10;
+  } while (value != 0);
+  while (n > 0) {
+    *out++ = digits[--n];
   }
+  return out;
+}
+
+// WriteFixed with the number of decimals known at compile time (constant divisors).
+template <int kDecimals>
+char* WriteFixedN(char* out, double scaled) {
+  constexpr unsigned long long kScale = [] {
+    unsigned long long p = 1;
+    for (int d = 0; d < kDecimals; ++d) p *= 10;
+    return p;
+  }();
   long long q = static_cast<long long>(scaled);
   if (q < 0) {
-    out->push_back('-');
+    *out++ = '-';
     q = -q;
   }
-  AppendInt(out, q / kPow10[decimals]);
-  long long fraction = q % kPow10[decimals];
+  const auto magnitude = static_cast<unsigned long long>(q);
+  out = WriteUnsigned(out, magnitude / kScale);
+  unsigned long long fraction = magnitude % kScale;
   if (fraction == 0) {
-    return;
+    return out;
   }
-  int digits = decimals;
+  int digits = kDecimals;
   while (fraction % 10 == 0) {
     fraction /= 10;
     --digits;
   }
-  char buffer[16];
-  for (int d = digits - 1; d >= 0; --d) {
-    buffer[d] = static_cast<char>('0' + fraction % 10);
+  *out = '.';
+  for (int d = digits; d >= 1; --d) {
+    out[d] = static_cast<char>('0' + fraction % 10);
     fraction /= 10;
   }
-  out->push_back('.');
-  out->append(buffer, static_cast<std::size_t>(digits));
+  return out + digits + 1;
+}
+
+}  // namespace
+
+char* WriteInt(char* out, long long value) {
+  if (value < 0) {
+    *out++ = '-';
+    return WriteUnsigned(out, 0ULL - static_cast<unsigned long long>(value));
+  }
+  return WriteUnsigned(out, static_cast<unsigned long long>(value));
+}
+
+char* WriteFixed(char* out, float value, int decimals) {
+  static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+  decimals = std::clamp(decimals, 0, 9);
+  const double scaled = std::round(static_cast<double>(value) * kPow10[decimals]);
+  if (!std::isfinite(scaled) || std::abs(scaled) > 1e17) {
+    return std::to_chars(out, out + kMaxNumberChars, value).ptr;
+  }
+  switch (decimals) {
+    case 0:
+      return WriteFixedN<0>(out, scaled);
+    case 1:
+      return WriteFixedN<1>(out, scaled);
+    case 2:
+      return WriteFixedN<2>(out, scaled);
+    case 3:
+      return WriteFixedN<3>(out, scaled);
+    case 4:
+      return WriteFixedN<4>(out, scaled);
+    case 5:
+      return WriteFixedN<5>(out, scaled);
+    case 6:
+      return WriteFixedN<6>(out, scaled);
+    case 7:
+      return WriteFixedN<7>(out, scaled);
+    case 8:
+      return WriteFixedN<8>(out, scaled);
+    default:
+      return WriteFixedN<9>(out, scaled);
+  }
+}
+
+void TextOut::Put(std::string_view text) {
+  if (text.size() > kRoomMax) {
+    Flush();
+    file_->Append(text);
+    return;
+  }
+  char* p = Room(text.size());
+  std::memcpy(p, text.data(), text.size());
+  End(p + text.size());
+}
+
+void TextOut::Flush() {
+  file_->Append(std::string_view(buffer_.data(), end_));
+  end_ = 0;
 }
 
 }  // namespace revolve::reconstruct::internal

@@ -72,6 +72,37 @@ void AppendInt(std::string* out, long long value);
 // "0.0001"): several times faster than the shortest round-trip text, exact to half a unit of
 // the last place. Non-finite or huge values fall back to AppendFloat.
 void AppendFixed(std::string* out, float value, int decimals);
+// The same texts written at `out` (room for kMaxNumberChars bytes); return the end.
+inline constexpr std::size_t kMaxNumberChars = 48;
+char* WriteInt(char* out, long long value);
+char* WriteFixed(char* out, float value, int decimals);
+
+// Text assembled in a fixed buffer and handed to `file` in large blocks (no per-number
+// allocation or size check).
+class TextOut {
+ public:
+  explicit TextOut(AtomicFile* file) : file_(file), buffer_(kSize) {}
+  TextOut(const TextOut&) = delete;
+  TextOut& operator=(const TextOut&) = delete;
+  // Where to write up to `n` (<= kRoomMax) more bytes; End(p) then marks p as the text's end.
+  static constexpr std::size_t kRoomMax = 4096;
+  char* Room(std::size_t n) {
+    if (end_ + n > buffer_.size()) {
+      Flush();
+    }
+    return buffer_.data() + end_;
+  }
+  void End(const char* p) { end_ = static_cast<std::size_t>(p - buffer_.data()); }
+  void Put(std::string_view text);
+  // Hands the text so far to the file (done before the file commits).
+  void Flush();
+
+ private:
+  static constexpr std::size_t kSize = 1 << 18;
+  AtomicFile* file_;
+  std::vector<char> buffer_;
+  std::size_t end_ = 0;
+};
 
 // The texture as PNG bytes (fast compression). Errors: internal when OpenCV cannot encode it.
 Expected<std::string> EncodePng(const cv::Mat& bgr);

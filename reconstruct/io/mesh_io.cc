@@ -1,6 +1,7 @@
 #include "reconstruct/io/mesh_io.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cerrno>
 #include <charconv>
@@ -338,55 +339,62 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
       "    ccw TRUE\n"
       "    coord Coordinate {\n"
       "      point [\n";
-  file.Append(text);
-  text.clear();
+  internal::TextOut out(&file);
+  out.Put(text);
   for (const Eigen::Vector3f& v : mesh.vertices) {
-    text += "        ";
-    AppendFixed(&text, v.x(), 4);
-    text += ' ';
-    AppendFixed(&text, v.y(), 4);
-    text += ' ';
-    AppendFixed(&text, v.z(), 4);
-    text += ",\n";
-    if (text.size() > (1 << 16)) {
-      file.Append(text);
-      text.clear();
+    char* p = out.Room(4 * internal::kMaxNumberChars);
+    std::memcpy(p, "        ", 8);
+    p += 8;
+    for (int k = 0; k < 3; ++k) {
+      if (k > 0) {
+        *p++ = ' ';
+      }
+      p = internal::WriteFixed(p, v[k], 4);
     }
+    *p++ = ',';
+    *p++ = '\n';
+    out.End(p);
   }
-  text += "      ]\n    }\n";
+  out.Put("      ]\n    }\n");
   if (colors) {
-    text += "    colorPerVertex TRUE\n    color Color {\n      color [\n";
+    out.Put("    colorPerVertex TRUE\n    color Color {\n      color [\n");
+    std::array<std::string, 256> channel;
+    for (int k = 0; k < 256; ++k) {
+      internal::AppendFixed(&channel[k], static_cast<float>(k / 255.0), 4);
+    }
     for (const Color& c : mesh.colors) {
-      text += "        ";
+      char* p = out.Room(4 * internal::kMaxNumberChars);
+      std::memcpy(p, "        ", 8);
+      p += 8;
       for (int k = 0; k < 3; ++k) {
         if (k > 0) {
-          text += ' ';
+          *p++ = ' ';
         }
-        AppendFixed(&text, static_cast<float>(c[k] / 255.0), 4);
+        const std::string& t = channel[c[k]];
+        std::memcpy(p, t.data(), t.size());
+        p += t.size();
       }
-      text += ",\n";
-      if (text.size() > (1 << 16)) {
-        file.Append(text);
-        text.clear();
-      }
+      *p++ = ',';
+      *p++ = '\n';
+      out.End(p);
     }
-    text += "      ]\n    }\n";
+    out.Put("      ]\n    }\n");
   }
-  text += "    coordIndex [\n";
+  out.Put("    coordIndex [\n");
   for (const Eigen::Vector3i& f : mesh.faces) {
-    text += "      ";
+    char* p = out.Room(4 * internal::kMaxNumberChars);
+    std::memcpy(p, "      ", 6);
+    p += 6;
     for (int k = 0; k < 3; ++k) {
-      AppendInt(&text, f[k]);
-      text += ", ";
+      p = internal::WriteInt(p, f[k]);
+      *p++ = ',';
+      *p++ = ' ';
     }
-    text += "-1,\n";
-    if (text.size() > (1 << 16)) {
-      file.Append(text);
-      text.clear();
-    }
+    std::memcpy(p, "-1,\n", 4);
+    out.End(p + 4);
   }
-  text += "    ]\n  }\n}\n  ]\n}\n";
-  file.Append(text);
+  out.Put("    ]\n  }\n}\n  ]\n}\n");
+  out.Flush();
   return file.Commit();
 }
 

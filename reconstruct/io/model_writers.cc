@@ -1,5 +1,6 @@
 // OBJ + MTL + PNG, binary STL and glTF binary writers; OBJ and STL readers.
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -152,55 +153,62 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
       "# revolve model: object frame, millimetres, z up; {} vertices, {} triangles\n"
       "mtllib {}\n",
       mesh.vertices.size(), mesh.faces.size(), mtl_path.filename().string());
-  auto flush = [&] {
-    if (text.size() > (1 << 16)) {
-      file.Append(text);
-      text.clear();
+  TextOut out(&file);
+  out.Put(text);
+  // Colour channels as text, once per byte value.
+  std::array<std::string, 256> channel;
+  if (colors) {
+    for (int k = 0; k < 256; ++k) {
+      channel[k] = " ";
+      AppendFixed(&channel[k], static_cast<float>(k / 255.0), 4);
     }
-  };
+  }
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Eigen::Vector3f& v = mesh.vertices[i];
-    text += "v ";
-    AppendFixed(&text, v.x(), kMmDecimals);
-    text += ' ';
-    AppendFixed(&text, v.y(), kMmDecimals);
-    text += ' ';
-    AppendFixed(&text, v.z(), kMmDecimals);
+    char* p = out.Room(8 * kMaxNumberChars);
+    *p++ = 'v';
+    for (int k = 0; k < 3; ++k) {
+      *p++ = ' ';
+      p = WriteFixed(p, v[k], kMmDecimals);
+    }
     if (colors) {
       for (int k = 0; k < 3; ++k) {
-        text += ' ';
-        AppendFixed(&text, static_cast<float>(mesh.colors[i][k] / 255.0), 4);
+        const std::string& c = channel[mesh.colors[i][k]];
+        std::memcpy(p, c.data(), c.size());
+        p += c.size();
       }
     }
-    text += '\n';
-    flush();
+    *p++ = '\n';
+    out.End(p);
   }
   if (textured) {
     for (const Eigen::Vector2f& uv : mesh.uvs) {
-      text += "vt ";
-      AppendFixed(&text, uv.x(), 6);
-      text += ' ';
-      AppendFixed(&text, 1.0f - uv.y(), 6);
-      text += '\n';
-      flush();
+      char* p = out.Room(4 * kMaxNumberChars);
+      std::memcpy(p, "vt ", 3);
+      p = WriteFixed(p + 3, uv.x(), 6);
+      *p++ = ' ';
+      p = WriteFixed(p, 1.0f - uv.y(), 6);
+      *p++ = '\n';
+      out.End(p);
     }
   }
-  text += fmt::format("usemtl {}\n", kMaterialName);
+  out.Put(fmt::format("usemtl {}\n", kMaterialName));
   for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
     const Eigen::Vector3i& f = mesh.faces[i];
-    text += 'f';
+    char* p = out.Room(8 * kMaxNumberChars);
+    *p++ = 'f';
     for (int c = 0; c < 3; ++c) {
-      text += ' ';
-      AppendInt(&text, f[c] + 1);
+      *p++ = ' ';
+      p = WriteInt(p, f[c] + 1);
       if (textured) {
-        text += '/';
-        AppendInt(&text, mesh.uv_faces[i][c] + 1);
+        *p++ = '/';
+        p = WriteInt(p, mesh.uv_faces[i][c] + 1);
       }
     }
-    text += '\n';
-    flush();
+    *p++ = '\n';
+    out.End(p);
   }
-  file.Append(text);
+  out.Flush();
   return file.Commit();
 }
 

@@ -67,28 +67,33 @@ struct ViewGeometry {
 class DepthCells {
  public:
   DepthCells(int width, int height, int cell_px)
-      : cell_(static_cast<float>(cell_px)),
+      : inv_cell_(1.0f / static_cast<float>(cell_px)),
         cols_((width + cell_px - 1) / cell_px + 1),
         rows_((height + cell_px - 1) / cell_px + 1),
         depth_(static_cast<std::size_t>(cols_) * rows_) {}
   void Clear() { std::fill(depth_.begin(), depth_.end(), std::numeric_limits<float>::infinity()); }
   void Splat(float u, float v, float depth) {
-    const int c = Cell(u);
-    const int r = Cell(v);
+    const int c = Cell(u, cols_);
+    const int r = Cell(v, rows_);
     if (c < 0 || r < 0 || c >= cols_ || r >= rows_) return;
     float& cell = depth_[static_cast<std::size_t>(r) * cols_ + c];
     cell = std::min(cell, depth);
   }
   float At(float u, float v) const {
-    const int c = std::clamp(Cell(u), 0, cols_ - 1);
-    const int r = std::clamp(Cell(v), 0, rows_ - 1);
+    const int c = std::clamp(Cell(u, cols_), 0, cols_ - 1);
+    const int r = std::clamp(Cell(v, rows_), 0, rows_ - 1);
     return depth_[static_cast<std::size_t>(r) * cols_ + c];
   }
 
  private:
-  int Cell(float px) const { return static_cast<int>(std::floor((px + 0.5f) / cell_)); }
+  // The cell holding pixel coordinate px, clamped to [-1, n] (NaN: -1).
+  int Cell(float px, int n) const {
+    const float x = (px + 0.5f) * inv_cell_;
+    if (!(x >= 0.0f)) return -1;
+    return x >= static_cast<float>(n) ? n : static_cast<int>(x);
+  }
 
-  float cell_;
+  float inv_cell_;
   int cols_;
   int rows_;
   std::vector<float> depth_;
@@ -409,7 +414,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   const std::vector<Candidates> face_candidates =
       options.atlas ? rank(nf, snx.data(), sny.data(), snz.data()) : std::vector<Candidates>();
-  // Vertices and their normals as arrays, and their projections into the current view.
+  // Vertices and their normals as arrays.
   std::vector<float> vx(nv), vy(nv), vz(nv), vnx(nv), vny(nv), vnz(nv);
   for (int i = 0; i < nv; ++i) {
     vx[i] = vertices[i].x();
@@ -419,7 +424,6 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     vny[i] = vertex_normal[i].y();
     vnz[i] = vertex_normal[i].z();
   }
-  std::vector<float> pu(nv), pv(nv), pdepth(nv);
   std::vector<Candidates> vertex_candidates;
   if (options.vertex_colors) {
     vertex_candidates = rank(nv, vnx.data(), vny.data(), vnz.data());
@@ -472,27 +476,22 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     DepthCells cells(g.width, g.height, cell_px);
     cells.Clear();
     const float margin = view_margin[k];
-    // Projection and facing of every vertex in straight loops over the arrays (vectorised),
-    // then the splats.
+    // Every vertex facing the camera (within the margin) and in front of it is splatted; the
+    // facing test comes first, so the others cost three products.
     {
       const Eigen::Matrix<float, 3, 4>& p = g.p;
       const Eigen::Vector4f& r = g.depth_row;
       const float dx = d.x(), dy = d.y(), dz = d.z();
       for (int i = 0; i < nv; ++i) {
+        const float facing = vnx[i] * dx + vny[i] * dy + vnz[i] * dz;
+        if (!(facing >= -margin)) continue;
         const float x = vx[i], y = vy[i], z = vz[i];
         const float hw = p(2, 0) * x + p(2, 1) * y + p(2, 2) * z + p(2, 3);
-        const float facing = vnx[i] * dx + vny[i] * dy + vnz[i] * dz;
-        const bool use = hw > 0.0f && facing >= -margin;
-        const float inv = use ? 1.0f / hw : 0.0f;
-        pu[i] = (p(0, 0) * x + p(0, 1) * y + p(0, 2) * z + p(0, 3)) * inv;
-        pv[i] = (p(1, 0) * x + p(1, 1) * y + p(1, 2) * z + p(1, 3)) * inv;
-        pdepth[i] =
-            use ? r[0] * x + r[1] * y + r[2] * z + r[3] : std::numeric_limits<float>::infinity();
-      }
-      for (int i = 0; i < nv; ++i) {
-        if (pdepth[i] != std::numeric_limits<float>::infinity()) {
-          cells.Splat(pu[i], pv[i], pdepth[i]);
-        }
+        if (!(hw > 0.0f)) continue;
+        const float inv = 1.0f / hw;
+        cells.Splat((p(0, 0) * x + p(0, 1) * y + p(0, 2) * z + p(0, 3)) * inv,
+                    (p(1, 0) * x + p(1, 1) * y + p(1, 2) * z + p(1, 3)) * inv,
+                    r[0] * x + r[1] * y + r[2] * z + r[3]);
       }
     }
     const float cell_mm = cell_px * mm_per_px;
