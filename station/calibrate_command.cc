@@ -1,7 +1,12 @@
 #include "station/calibrate_command.h"
 
+#include <poll.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
+#include <iostream>
 #include <istream>
 #include <mutex>
 #include <ostream>
@@ -54,9 +59,19 @@ void SleepFor(std::stop_token stop, double ms) {
                       [] { return false; });
 }
 
-// One line of input; false at the end of the input.
-bool ReadLine(std::istream& in, std::string* line) {
+// One line of input; false at the end of the input or when a stop is requested. On a terminal
+// (std::cin) the wait polls, so that Ctrl-C interrupts a prompt. (A terminal delivers a line at a
+// time, so nothing waits in stdio's buffer while poll() blocks; piped input is read as is.)
+bool ReadLine(std::istream& in, std::stop_token stop, std::string* line) {
   line->clear();
+  if (&in == &std::cin && ::isatty(STDIN_FILENO) == 1) {
+    pollfd fd{STDIN_FILENO, POLLIN, 0};
+    while (!stop.stop_requested()) {
+      const int ready = ::poll(&fd, 1, 100);
+      if (ready > 0 || (ready < 0 && errno != EINTR)) break;
+    }
+    if (stop.stop_requested()) return false;
+  }
   if (!std::getline(in, *line)) return false;
   if (!line->empty() && line->back() == '\r') line->pop_back();
   return true;
@@ -367,7 +382,8 @@ class Calibrator {
       fmt::print(out_, "move and tilt the board, press Enter; `q` to finish ({} views so far): ",
                  views.size());
       out_.flush();
-      if (!ReadLine(in_, &line)) {
+      if (!ReadLine(in_, stop_, &line)) {
+        if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
         fmt::print(out_, "\n");
         break;
       }
@@ -432,7 +448,7 @@ class Calibrator {
                board_.Describe(), angles.size(), config_.scan.step_deg);
     out_.flush();
     std::string line;
-    if (!ReadLine(in_, &line)) fmt::print(out_, "\n");
+    if (!ReadLine(in_, stop_, &line)) fmt::print(out_, "\n");
     if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
     auto stops = Turn(angles, board_);
     if (!stops) return std::unexpected(stops.error());
@@ -472,6 +488,11 @@ class Calibrator {
     }
     auto calibration = cal::LoadCalibration(file);
     if (!calibration) return Fail(kExitConfig, calibration.error().message);
+    if (!calibration->axis) {
+      return Fail(kExitConfig, fmt::format("{}: holds the lens only, no turntable axis to check: "
+                                           "run `revolve calibrate axis --calibration {}` first",
+                                           file.string(), file.string()));
+    }
     // Today's board: the one the calibration was made with, unless the flags say otherwise.
     auto board = BoardWithOverrides(calibration->board, options_);
     if (!board) return std::unexpected(board.error());
@@ -490,7 +511,7 @@ class Calibrator {
                file.string(), calibration->created, board_.Describe(), angles.size());
     out_.flush();
     std::string line;
-    if (!ReadLine(in_, &line)) fmt::print(out_, "\n");
+    if (!ReadLine(in_, stop_, &line)) fmt::print(out_, "\n");
     if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
     auto stops = Turn(angles, board_);
     if (!stops) return std::unexpected(stops.error());

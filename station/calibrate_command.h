@@ -18,9 +18,9 @@
 
 namespace revolve::station {
 
-// Exit code of `revolve calibrate check` (and the other verbs) when the board was not found or
-// the inputs could not be measured: EX_DATAERR. A drift beyond tolerance is kExitFailed (1); bad
-// command lines kExitUsage, configs kExitConfig, devices kExitUnavailable (scan_command.h).
+// Exit code of `revolve calibrate check` when it could not measure: the board was found at no
+// stop, or the frames have another size than the calibration (EX_DATAERR). A drift beyond
+// tolerance is kExitFailed (1).
 inline constexpr int kExitNoData = 65;
 
 enum class CalibrateStep {
@@ -54,10 +54,11 @@ struct CalibrateCommandOptions {
 // a view and "q" (or the end of the input) finishes; before the axis and check turns, any line
 // (or the end of the input) starts. So the command needs no terminal: with --images and the input
 // at its end (< /dev/null) it runs straight through. Progress and figures go to `out`, errors to
-// `err`. Returns kExitOk; kExitFailed (calibration refused, check failed: drift); kExitNoData
-// (no usable board in the images or frames, check could not measure); kExitUsage (bad
-// options); kExitConfig (config, board or calibration file invalid or missing);
-// kExitUnavailable (a device failed); kExitAborted.
+// `err`. Returns (scan_command.h) kExitOk (check: the rig matches); kExitFailed (a calibration
+// refused, no images, a write failed; check: the rig drifted); kExitNoData (check could not
+// measure); kExitUsage (bad board flags, --calibration missing for kAxis); kExitConfig (the
+// config, or the calibration file to use, is missing or invalid); kExitUnavailable (a device
+// failed); kExitAborted (stop requested).
 int RunCalibrateCommand(const CalibrateCommandOptions& options, std::stop_token stop,
                         std::istream& in, std::ostream& out, std::ostream& err);
 
