@@ -327,6 +327,32 @@ TEST_F(ScanGeometryTest, FramesOfAnotherSizeAreRefused) {
   EXPECT_NE(other.error().message.find("cal.toml"), std::string::npos);
 }
 
+TEST_F(ScanGeometryTest, FramesAreUndistortedWithTheCalibratedLens) {
+  calibrate::IntrinsicsResult lens;
+  lens.camera = rig::TrueLens();
+  lens.camera.distortion = {-0.12, 0.09, 0.0004, -0.0003, 0.0};
+  calibrate::AxisResult axis;
+  axis.cam_from_table = rig::TrueRig().cam_from_table;
+  ASSERT_TRUE(calibrate::SaveCalibration(calibrate::Calibration::From(rig::TestBoard(), lens, axis),
+                                         dir_ / "cal.toml"));
+  auto camera = capture::Create(capture::CameraOptions{}, std::make_shared<SimulatedPlate>());
+  ASSERT_TRUE(camera);
+  Expected<ScanGeometry> geometry = ScanGeometry::Create({}, **camera, dir_ / "cal.toml");
+  ASSERT_TRUE(geometry) << geometry.error().ToString();
+  cv::Mat frame(576, 768, CV_8UC3);
+  cv::randu(frame, cv::Scalar::all(0), cv::Scalar::all(255));
+  const cv::Mat undistorted = geometry->Undistort(frame);
+  const cv::Mat expected = calibrate::UndistortFrame(lens.camera, frame);
+  ASSERT_EQ(undistorted.size(), frame.size());
+  EXPECT_EQ(cv::norm(undistorted, expected, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(undistorted, frame, cv::NORM_L1), 0.0);
+  EXPECT_TRUE(geometry->ReportJson()["calibration"]["undistorted"].get<bool>());
+  // No calibration: frames pass as they are.
+  Expected<ScanGeometry> none = ScanGeometry::Create({}, **camera, {});
+  ASSERT_TRUE(none);
+  EXPECT_EQ(none->Undistort(frame).data, frame.data);
+}
+
 TEST(ScanGeometrySources, CameraGeometryOrThesis) {
   capture::CameraOptions options;
   auto known = capture::Create(options, std::make_shared<SimulatedPlate>());
