@@ -21,15 +21,7 @@ Expected<void> Done(const config::Section& s) { return s.CheckNoUnknownKeys(); }
 
 Expected<CalibrationOptions> ParseCalibrationOptions(const config::Section& section) {
   CalibrationOptions o;
-  std::string file;
-  REVOLVE_READ(file, section.String("file", ""));
-  if (!file.empty()) {
-    o.file = file;
-    const std::filesystem::path origin(section.origin());
-    if (o.file.is_relative() && !section.origin().starts_with("<") && origin.has_parent_path()) {
-      o.file = origin.parent_path() / o.file;
-    }
-  }
+  REVOLVE_READ(o.file, section.Path("file"));
 
   config::Section s = section;
   REVOLVE_READ(s, section.Child("board"));

@@ -106,13 +106,13 @@ class Reader {
   }
   // A relative path is taken relative to the config file's folder (when there is a file).
   void Path(std::string_view key, std::string* field) {
-    String(key, field);
-    if (error_ || field->empty()) return;
-    const std::filesystem::path path(*field);
-    if (path.is_relative() && section_.origin() != config::kEmbeddedOrigin) {
-      const std::filesystem::path base = std::filesystem::path(section_.origin()).parent_path();
-      if (!base.empty()) *field = (base / path).lexically_normal().string();
+    if (error_) return;
+    auto value = section_.Path(key, *field);
+    if (!value) {
+      error_ = value.error();
+      return;
     }
+    *field = value->string();
   }
 
   Expected<void> Finish() {

@@ -5,6 +5,7 @@
 // component and hole filling.
 #pragma once
 
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,6 +32,11 @@ struct SegmentOptions {
   // background: colour distance (Euclidean, 8-bit BGR) above which a pixel is object; 0 picks it
   // per frame by Otsu's method on the distance image (never below min_contrast).
   double difference_threshold = 0.0;
+  // background: an image of the empty scene (plate, fixtures, backdrop; same size and camera
+  // settings as the scan) used instead of a frame the camera captures at the start. Real cameras
+  // need it: they cannot capture the empty scene by themselves. Take it with
+  // `revolve camera snapshot FILE` before putting the object on the plate. Empty: none.
+  std::filesystem::path background_file;
   // chroma: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
   // the region of interest's outline (which must show backdrop).
   std::vector<double> chroma_key_bgr;

@@ -139,6 +139,16 @@ Expected<std::string> Section::String(std::string_view key, std::string fallback
   return value;
 }
 
+Expected<std::filesystem::path> Section::Path(std::string_view key,
+                                              std::filesystem::path fallback) const {
+  Expected<std::string> value = String(key, fallback.string());
+  if (!value) return std::unexpected(value.error());
+  std::filesystem::path path(*value);
+  if (path.empty() || !path.is_relative() || origin() == kEmbeddedOrigin) return path;
+  const std::filesystem::path base = std::filesystem::path(origin()).parent_path();
+  return base.empty() ? path : (base / path).lexically_normal();
+}
+
 Expected<std::vector<double>> Section::Numbers(std::string_view key, std::vector<double> fallback,
                                                std::size_t count) const {
   const toml::node* node = Find(key);

@@ -61,6 +61,11 @@ class Section {
   // `allowed` empty means any string.
   Expected<std::string> String(std::string_view key, std::string fallback,
                                std::initializer_list<std::string_view> allowed = {}) const;
+  // A file or folder path (a string). A relative path is taken relative to the config file's
+  // folder, so a config and the files it names move together; the embedded default's paths
+  // stay as given. Empty stays empty.
+  Expected<std::filesystem::path> Path(std::string_view key,
+                                       std::filesystem::path fallback = {}) const;
   // An array of numbers; `count` 0 means any length.
   Expected<std::vector<double>> Numbers(std::string_view key, std::vector<double> fallback,
                                         std::size_t count = 0) const;

@@ -10,16 +10,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/image_files.h"
+
 namespace revolve::reconstruct {
 namespace {
-
-bool IsImageFile(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".png" || ext == ".tif" || ext == ".tiff" || ext == ".jpg" || ext == ".jpeg" ||
-         ext == ".bmp" || ext == ".pgm" || ext == ".ppm";
-}
 
 cv::Mat Disc(int radius_px) {
   return cv::getStructuringElement(cv::MORPH_ELLIPSE,
@@ -234,23 +228,13 @@ Expected<cv::Mat> ReadImage8(const std::filesystem::path& path) {
 }
 
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options) {
-  std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such folder", dir.string()));
-  }
   if (!(options.step_deg > 0.0) || !std::isfinite(options.step_deg)) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("step {} deg: expected a positive angle", options.step_deg));
   }
-  std::vector<std::filesystem::path> files;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && IsImageFile(entry.path())) files.push_back(entry.path());
-  }
-  if (ec) {
-    return MakeError(ErrorCode::kIo,
-                     fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
-  }
-  std::sort(files.begin(), files.end());
+  Expected<std::vector<std::filesystem::path>> listed = ListImageFiles(dir);
+  if (!listed) return std::unexpected(listed.error());
+  const std::vector<std::filesystem::path>& files = *listed;
 
   ImageSet set;
   if (options.pattern.empty()) {

@@ -1,31 +1,39 @@
 #include "station/devices.h"
 
 #include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
 
 namespace revolve::station {
 namespace {
 
-// A camera that is "unplugged" for [station.simulate] camera_fail_count captures after
-// camera_fail_after captures: Capture fails with no_device, like a USB camera that dropped off
-// the bus, and comes back afterwards.
-class LosingCamera final : public capture::Camera {
+// The camera faults of [station.simulate], counted in captures since start-up:
+// - "unplugged" for camera_fail_count captures after camera_fail_after: Capture fails with
+//   no_device, like a USB camera that dropped off the bus, and comes back afterwards;
+// - camera_glitch: camera_glitch_count bad frames (blank, overexposed or blurred) after
+//   camera_glitch_after, for the quality gates.
+class FaultyCamera final : public capture::Camera {
  public:
-  LosingCamera(std::unique_ptr<capture::Camera> inner, SimulateOptions options,
+  FaultyCamera(std::unique_ptr<capture::Camera> inner, SimulateOptions options,
                std::shared_ptr<std::atomic<std::int64_t>> captures)
-      : inner_(std::move(inner)), options_(options), captures_(std::move(captures)) {}
+      : inner_(std::move(inner)), options_(std::move(options)), captures_(std::move(captures)) {}
 
   Expected<capture::FrameFormat> Start() override { return inner_->Start(); }
   Expected<capture::Frame> Capture(capture::Clock::time_point not_before,
                                    capture::Clock::duration timeout) override {
     const std::int64_t n = captures_->fetch_add(1);
-    if (n >= options_.camera_fail_after &&
+    if (options_.camera_fail_after >= 0 && n >= options_.camera_fail_after &&
         n < options_.camera_fail_after + options_.camera_fail_count) {
       return MakeError(
           ErrorCode::kNoDevice,
           fmt::format("{}: the camera is gone (simulated loss {} of {})", inner_->Describe(),
                       n - options_.camera_fail_after + 1, options_.camera_fail_count));
     }
-    return inner_->Capture(not_before, timeout);
+    auto frame = inner_->Capture(not_before, timeout);
+    if (frame && options_.camera_glitch != "none" && n >= options_.camera_glitch_after &&
+        n < options_.camera_glitch_after + options_.camera_glitch_count) {
+      Glitch(frame->image);
+    }
+    return frame;
   }
   void Stop() noexcept override { inner_->Stop(); }
   Expected<capture::Frame> CaptureBackground(capture::Clock::time_point not_before,
@@ -40,6 +48,16 @@ class LosingCamera final : public capture::Camera {
   std::string Describe() const override { return inner_->Describe(); }
 
  private:
+  void Glitch(cv::Mat& image) const {
+    if (options_.camera_glitch == "blank") {
+      image.setTo(cv::Scalar::all(0));
+    } else if (options_.camera_glitch == "overexposed") {
+      image.convertTo(image, -1, 4.0);
+    } else if (options_.camera_glitch == "blurred") {
+      cv::GaussianBlur(image, image, cv::Size(), 6.0);
+    }
+  }
+
   std::unique_ptr<capture::Camera> inner_;
   SimulateOptions options_;
   std::shared_ptr<std::atomic<std::int64_t>> captures_;
@@ -52,8 +70,9 @@ Expected<void> ReopenCamera(const StationConfig& config, Devices& devices) {
   devices.camera.reset();
   auto camera = capture::Create(config.camera, devices.plate);
   if (!camera) return std::unexpected(camera.error());
-  if (config.station.simulate.camera_fail_after >= 0) {
-    devices.camera = std::make_unique<LosingCamera>(std::move(*camera), config.station.simulate,
+  if (config.station.simulate.camera_fail_after >= 0 ||
+      config.station.simulate.camera_glitch != "none") {
+    devices.camera = std::make_unique<FaultyCamera>(std::move(*camera), config.station.simulate,
                                                     devices.captures);
   } else {
     devices.camera = std::move(*camera);

@@ -22,7 +22,7 @@ struct Devices {
   std::unique_ptr<capture::Camera> camera;
   std::unique_ptr<capture::Segmenter> segmenter;
   // Captures made since the devices were opened (counts across camera re-creations), for
-  // [station.simulate] camera_fail_after.
+  // [station.simulate] camera_fail_after and camera_glitch_after.
   std::shared_ptr<std::atomic<std::int64_t>> captures =
       std::make_shared<std::atomic<std::int64_t>>(0);
 };

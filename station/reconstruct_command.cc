@@ -72,6 +72,10 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     }
     cv::Mat frame = cv::imread((dir / s.frame_file).string(), cv::IMREAD_COLOR);
     if (frame.size() != s.mask.size()) frame.release();
+    if (cv::countNonZero(s.mask) == 0) {
+      fmt::print(err, "revolve reconstruct: stop {}: the silhouette is empty; not used\n", s.index);
+      continue;
+    }
     if (auto integrated = geometry->Integrate(s.mask, frame, s.readback_deg); !integrated) {
       fmt::print(err, "revolve reconstruct: stop {}: {}\n", s.index, integrated.error().message);
       return kExitFailed;

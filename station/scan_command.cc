@@ -1,6 +1,7 @@
 #include "station/scan_command.h"
 
 #include <ostream>
+#include <set>
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
@@ -52,6 +53,15 @@ void PrintSummary(std::ostream& out, const ScanFolder& folder, const StationConf
                  a["sphere_radius_error_percent"].get<double>());
     }
     fmt::print(out, "\n");
+  }
+  if (const auto& warnings = r.report.value("quality_warnings", nlohmann::json::array());
+      !warnings.empty()) {
+    std::set<int> stops;
+    for (const auto& w : warnings) stops.insert(w["stop"].get<int>());
+    fmt::print(out,
+               "  warnings     {} quality warning(s) at {} stop(s); see \"quality\" in "
+               "manifest.json and contact_sheet.png\n",
+               warnings.size(), stops.size());
   }
   fmt::print(out, "  pictures     {}/frames, masks, contact_sheet.png; report.json\n",
              folder.dir().string());

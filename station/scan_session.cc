@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <ctime>
 #include <map>
@@ -9,7 +10,9 @@
 #include <thread>
 
 #include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
 
+#include "capture/quality.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
@@ -37,6 +40,29 @@ void SleepFor(std::stop_token stop, double ms) {
   std::unique_lock lock(mutex);
   (void)wake.wait_for(lock, stop, std::chrono::duration<double, std::milli>(ms),
                       [] { return false; });
+}
+
+// The accepted stops next to stop k (k-1 and k+1; around the end when the plan is a full
+// turn), for the quality gates' jump checks.
+std::vector<capture::StopStats> NeighbourStats(const std::map<int, capture::StopStats>& stats,
+                                               int k, const ScanOptions& scan) {
+  const bool full_turn = std::abs(scan.stops * scan.step_deg - 360.0) < 1e-6;
+  std::vector<capture::StopStats> out;
+  for (int n : {k - 1, k + 1}) {
+    if (full_turn) n = (n + scan.stops) % scan.stops;
+    if (n == k) continue;
+    if (auto it = stats.find(n); it != stats.end()) out.push_back(it->second);
+  }
+  return out;
+}
+
+std::string WarningsText(const std::vector<capture::QualityWarning>& warnings) {
+  std::string text;
+  for (const capture::QualityWarning& w : warnings) {
+    if (!text.empty()) text += "; ";
+    text += w.message;
+  }
+  return text;
 }
 
 bool MayPass(ErrorCode code) {
@@ -325,14 +351,19 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
 
   // A resumed scan: the saved stops first.
   std::map<int, cv::Mat> thumbnails;
+  std::map<int, capture::StopStats> stop_stats;  // of the accepted stops, for the jump gates
   std::set<int> done;
   for (SavedStop& s : saved) {
     if (s.index < 0 || s.index >= scan.stops) continue;
-    if (auto integrated = geometry->Integrate(s.mask, s.frame, s.readback_deg); !integrated) {
+    if (cv::countNonZero(s.mask) == 0) {
+      // Not used for the model (see below); still a stop done.
+    } else if (auto integrated = geometry->Integrate(s.mask, s.frame, s.readback_deg);
+               !integrated) {
       return std::unexpected(
           WithContext(integrated.error(), fmt::format("re-integrating saved stop {}", s.index)));
     }
     thumbnails[s.index] = ContactSheetTile(s.frame, s.mask);
+    stop_stats[s.index] = capture::MeasureStop(s.frame, s.mask);
     done.insert(s.index);
     s.frame.release();
     s.mask.release();
@@ -353,13 +384,27 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
 
   cv::Mat background;
   if (devices_.segmenter->NeedsBackground()) {
-    auto frame = devices_.camera->CaptureBackground(
-        Clock::now(), std::chrono::duration_cast<Clock::duration>(
-                          std::chrono::duration<double>(scan.capture_timeout_s)));
-    if (!frame) {
-      return std::unexpected(WithContext(frame.error(), "capturing the background frame"));
+    if (const auto& file = config_.segment.background_file; !file.empty()) {
+      background = cv::imread(file.string(), cv::IMREAD_COLOR);
+      if (background.empty()) {
+        return MakeError(ErrorCode::kNotFound,
+                         fmt::format("[segment] background_file: cannot read {} (take it with "
+                                     "`revolve camera snapshot {}` with the plate empty)",
+                                     file.string(), file.string()));
+      }
+    } else {
+      auto frame = devices_.camera->CaptureBackground(
+          Clock::now(), std::chrono::duration_cast<Clock::duration>(
+                            std::chrono::duration<double>(scan.capture_timeout_s)));
+      if (!frame) {
+        return std::unexpected(
+            WithContext(frame.error(),
+                        "capturing the background frame (real cameras need [segment] "
+                        "background_file, an image of the empty scene)"));
+      }
+      background = frame->image;
     }
-    background = geometry->Undistort(frame->image);
+    background = geometry->Undistort(background);
     if (auto w = folder_.WriteImage("frames/background.png", background); !w) {
       return std::unexpected(w.error());
     }
@@ -390,37 +435,67 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
     t = Clock::now();
     SleepFor(stop, scan.settle_ms);
     if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
-    const auto settled = Clock::now();
+    auto settled = Clock::now();
     times_.settle_ms += MsSince(t);
 
     if (auto e = Enter(ScanState::kCapturing, k, commanded_deg); !e) {
       return std::unexpected(e.error());
     }
-    t = Clock::now();
-    auto frame = CaptureWithRetries(stop, k, settled);
-    if (!frame) return std::unexpected(frame.error());
-    // Segmented, integrated and saved as the views describe it.
-    frame->image = geometry->Undistort(frame->image);
-    times_.capture_ms += MsSince(t);
+    // Capture and segment; a stop that fails a quality gate is captured again up to
+    // [quality] recaptures times, then kept with its warnings.
+    Expected<capture::Frame> frame = std::unexpected(Error{});
+    Expected<cv::Mat> mask = std::unexpected(Error{});
+    capture::StopAssessment assessment;
+    for (int attempt = 0;; ++attempt) {
+      t = Clock::now();
+      frame = CaptureWithRetries(stop, k, settled);
+      if (!frame) return std::unexpected(frame.error());
+      // Segmented, integrated and saved as the views describe it.
+      frame->image = geometry->Undistort(frame->image);
+      times_.capture_ms += MsSince(t);
 
-    t = Clock::now();
-    auto mask = devices_.segmenter->Segment(frame->image, background);
-    if (!mask) {
-      return std::unexpected(WithContext(mask.error(), fmt::format("segmenting stop {}", k)));
+      t = Clock::now();
+      mask = devices_.segmenter->Segment(frame->image, background);
+      if (!mask) {
+        return std::unexpected(WithContext(mask.error(), fmt::format("segmenting stop {}", k)));
+      }
+      assessment = capture::AssessStop(frame->image, *mask, NeighbourStats(stop_stats, k, scan),
+                                       config_.quality);
+      times_.segment_ms += MsSince(t);
+      if (assessment.ok() || attempt >= config_.quality.recaptures || stop.stop_requested()) {
+        break;
+      }
+      Emit(machine_->Note(
+          fmt::format("stop {}: {}; capturing again ({} of {})", k,
+                      WarningsText(assessment.warnings), attempt + 1, config_.quality.recaptures),
+          Clock::now()));
+      settled = Clock::now();
     }
-    times_.segment_ms += MsSince(t);
-    const int mask_area_px = cv::countNonZero(*mask);
-    if (mask_area_px == 0) {
-      Emit(machine_->Note(fmt::format("stop {}: the silhouette is empty", k), Clock::now()));
+    stop_stats[k] = assessment.stats;
+    const int mask_area_px = assessment.stats.area_px;
+    if (!assessment.ok()) {
+      Emit(
+          machine_->Note(fmt::format("stop {}: warning: {}{}", k, WarningsText(assessment.warnings),
+                                     mask_area_px == 0 ? " (not used for the model)" : ""),
+                         Clock::now()));
+    } else if (mask_area_px == 0) {
+      Emit(machine_->Note(
+          fmt::format("stop {}: the silhouette is empty (not used for the model)", k),
+          Clock::now()));
     }
 
     if (auto e = Enter(ScanState::kIntegrating, k, commanded_deg); !e) {
       return std::unexpected(e.error());
     }
     t = Clock::now();
-    if (auto integrated = geometry->Integrate(*mask, frame->image, state->angle_deg); !integrated) {
-      return std::unexpected(
-          WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
+    // An empty silhouette would carve the whole model away: it is kept in the folder (with its
+    // warning) but not used.
+    if (mask_area_px > 0) {
+      if (auto integrated = geometry->Integrate(*mask, frame->image, state->angle_deg);
+          !integrated) {
+        return std::unexpected(
+            WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
+      }
     }
     times_.integrate_ms += MsSince(t);
 
@@ -439,6 +514,12 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
                             {"mask", "masks/" + name},
                             {"mask_area_px", mask_area_px}};
     if (frame->exposure_us > 0.0) entry["exposure_us"] = frame->exposure_us;
+    if (!assessment.ok()) {
+      entry["quality"] = nlohmann::json::array();
+      for (const capture::QualityWarning& w : assessment.warnings) {
+        entry["quality"].push_back({{"code", w.code}, {"message", w.message}});
+      }
+    }
     manifest_["stops"].push_back(std::move(entry));
     SortStopsByIndex(manifest_["stops"]);
     manifest_["stops_done"] = result.stops_done + 1;
@@ -507,6 +588,15 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
                      {"dimensions_mm", Vec3Json(stats.bbox_max_mm - stats.bbox_min_mm)},
                      {"watertight", stats.closed},
                      {"consistently_oriented", stats.oriented}};
+  // The quality gates' warnings of the kept stops (the manifest has them per stop).
+  report["quality_warnings"] = nlohmann::json::array();
+  for (const nlohmann::json& entry : manifest_["stops"]) {
+    if (!entry.contains("quality")) continue;
+    for (const nlohmann::json& w : entry["quality"]) {
+      report["quality_warnings"].push_back(
+          {{"stop", entry["index"]}, {"code", w["code"]}, {"message", w["message"]}});
+    }
+  }
   report["times_ms"] = times_.ToJson();
   // The truth is in millimetres: not comparable with a thesis-mode model in pixels.
   if (auto truth = devices_.camera->KnownScene(); truth && geometry->metric()) {

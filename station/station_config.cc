@@ -126,6 +126,9 @@ Expected<SimulateOptions> ParseSimulateOptions(const config::Section& s) {
   r.Integer("drive_alarm_code", o.drive_alarm_code, 0, 65535);
   r.Integer("camera_fail_after", o.camera_fail_after, -1, 1000000000);
   r.Integer("camera_fail_count", o.camera_fail_count, 1, 1000000000);
+  r.String("camera_glitch", o.camera_glitch, {"none", "blank", "overexposed", "blurred"});
+  r.Integer("camera_glitch_after", o.camera_glitch_after, 0, 1000000000);
+  r.Integer("camera_glitch_count", o.camera_glitch_count, 1, 1000000000);
   r.Integer("disk_limit_bytes", o.disk_limit_bytes, 0, 1'000'000'000'000);
   if (auto done = r.Finish(); !done) return std::unexpected(done.error());
   return o;
@@ -262,6 +265,11 @@ Expected<void> CheckSimulate(const StationConfig& cfg, const config::Section& ro
         "camera_fail_after",
         "camera loss can only be simulated with the synthetic or replay camera"));
   }
+  if (sim.camera_glitch != "none" && cfg.camera.backend != "synthetic" &&
+      cfg.camera.backend != "replay") {
+    return std::unexpected(simulate->BadValue(
+        "camera_glitch", "bad frames can only be simulated with the synthetic or replay camera"));
+  }
   return {};
 }
 
@@ -318,6 +326,7 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document) {
         section("turntable", turntable::ParseOptions, cfg.turntable),
         section("camera", capture::ParseOptions, cfg.camera),
         section("segment", capture::ParseSegmentOptions, cfg.segment),
+        section("quality", capture::ParseQualityOptions, cfg.quality),
         section("reconstruct", reconstruct::ParseOptions, cfg.reconstruct),
         section("calibration", calibrate::ParseCalibrationOptions, cfg.calibration)}) {
     if (!parsed) return std::unexpected(parsed.error());

@@ -1,6 +1,6 @@
 // The whole station's configuration: [scan], [station], [daemon], [operator], [recipes.*] plus
 // each module's own section ([calibration]: docs/calibration.md). Every key, its unit, default and
-// range: docs/station.md.
+// range: README.md, "Configuration reference".
 #pragma once
 
 #include <cstdint>
@@ -13,6 +13,7 @@
 #include "base/error.h"
 #include "calibrate/options.h"
 #include "capture/camera.h"
+#include "capture/quality.h"
 #include "capture/segmenter.h"
 #include "config/config.h"
 #include "reconstruct/reconstructor.h"
@@ -40,10 +41,16 @@ struct SimulateOptions {
   std::int64_t camera_fail_after =
       -1;  // captures (since start-up) before the camera is lost; -1 never
   std::int64_t camera_fail_count = 1;  // consecutive captures that fail with no_device
-  std::int64_t disk_limit_bytes = 0;   // a scan folder's simulated disk space; 0 = unlimited
+  // A bad frame instead of a lost camera, for the quality gates: none | blank (black: an empty
+  // silhouette) | overexposed (gain x4) | blurred (Gaussian, sigma 6 px).
+  std::string camera_glitch = "none";
+  std::int64_t camera_glitch_after = 0;  // captures (since start-up) before the first bad frame
+  std::int64_t camera_glitch_count = 1;  // consecutive bad frames
+  std::int64_t disk_limit_bytes = 0;     // a scan folder's simulated disk space; 0 = unlimited
 
   bool Any() const {
-    return drive_fault != "none" || camera_fail_after >= 0 || disk_limit_bytes > 0;
+    return drive_fault != "none" || camera_fail_after >= 0 || camera_glitch != "none" ||
+           disk_limit_bytes > 0;
   }
 };
 
@@ -123,6 +130,7 @@ struct StationConfig {
   turntable::TurntableOptions turntable;
   capture::CameraOptions camera;
   capture::SegmentOptions segment;
+  capture::QualityOptions quality;  // [quality]: the per-stop gates (capture/quality.h)
   reconstruct::ReconstructOptions reconstruct;
   // [calibration]: the calibration scans use (`file`, resolved against the config file's folder;
   // empty: none), the board and the gates of `revolve calibrate` (docs/calibration.md).

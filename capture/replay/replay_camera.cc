@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/image_files.h"
 #include "base/log.h"
 
 namespace revolve::capture {
@@ -69,14 +70,6 @@ Expected<std::vector<Placeholder>> Placeholders(std::string_view pattern) {
   return out;
 }
 
-bool IsImage(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
-  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
-         ext == ".bmp" || ext == ".pgm" || ext == ".ppm";
-}
-
 }  // namespace
 
 Expected<void> CheckReplayPattern(std::string_view pattern) {
@@ -99,49 +92,14 @@ std::string ExpandReplayPattern(std::string_view pattern, int angle_deg, int ind
   return out;
 }
 
-bool NaturalLess(std::string_view a, std::string_view b) {
-  std::size_t i = 0, j = 0;
-  while (i < a.size() && j < b.size()) {
-    if (std::isdigit(static_cast<unsigned char>(a[i])) &&
-        std::isdigit(static_cast<unsigned char>(b[j]))) {
-      std::size_t i_end = i, j_end = j;
-      while (i_end < a.size() && std::isdigit(static_cast<unsigned char>(a[i_end]))) ++i_end;
-      while (j_end < b.size() && std::isdigit(static_cast<unsigned char>(b[j_end]))) ++j_end;
-      // Compare the numbers without leading zeros: longer is larger, then digit by digit.
-      std::string_view x = a.substr(i, i_end - i), y = b.substr(j, j_end - j);
-      x.remove_prefix(std::min(x.find_first_not_of('0'), x.size()));
-      y.remove_prefix(std::min(y.find_first_not_of('0'), y.size()));
-      if (x.size() != y.size()) return x.size() < y.size();
-      if (x != y) return x < y;
-      i = i_end;
-      j = j_end;
-      continue;
-    }
-    if (a[i] != b[j]) return static_cast<unsigned char>(a[i]) < static_cast<unsigned char>(b[j]);
-    ++i;
-    ++j;
-  }
-  if ((a.size() - i) != (b.size() - j)) return a.size() - i < b.size() - j;
-  return a < b;  // equal up to leading zeros: any fixed tie-break
-}
-
 Expected<std::vector<std::filesystem::path>> ListImages(const std::filesystem::path& dir) {
-  std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("replay: {} is not a folder", dir.string()));
-  }
-  std::vector<std::filesystem::path> files;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && IsImage(entry.path())) files.push_back(entry.path());
-  }
-  if (files.empty()) {
+  auto files = ListImageFiles(dir);
+  if (!files) return std::unexpected(WithContext(files.error(), "replay"));
+  if (files->empty()) {
     return MakeError(
         ErrorCode::kBadInput,
         fmt::format("replay: {} holds no images (png, jpg, tif, bmp, pgm, ppm)", dir.string()));
   }
-  std::sort(files.begin(), files.end(), [](const auto& x, const auto& y) {
-    return NaturalLess(x.filename().string(), y.filename().string());
-  });
   return files;
 }
 

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "base/error.h"
+#include "base/image_files.h"  // NaturalLess, the order of a folder's images
 #include "base/sim_plate.h"
 #include "capture/camera.h"
 
@@ -26,10 +27,6 @@ Expected<void> CheckReplayPattern(std::string_view pattern);
 // The file name for a stop: {angle} becomes angle_deg, {index} becomes index (zero-padded to
 // the given width). Contract: CheckReplayPattern(pattern) passed.
 std::string ExpandReplayPattern(std::string_view pattern, int angle_deg, int index);
-
-// "Natural" order: digit runs compare as numbers, so "img2.png" < "img10.png"; otherwise
-// byte order.
-bool NaturalLess(std::string_view a, std::string_view b);
 
 // The image files (png, jpg, jpeg, tif, tiff, bmp, pgm, ppm; any case) of a folder in natural
 // order. Errors: not_found (no folder), bad_input (no images).

@@ -373,6 +373,8 @@ Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
   auto difference =
       section.Number("difference_threshold", options.difference_threshold, 0.0, 442.0);
   if (!difference) return std::unexpected(difference.error());
+  auto background_file = section.Path("background_file");
+  if (!background_file) return std::unexpected(background_file.error());
   auto key = section.Numbers("chroma_key_bgr", {});
   if (!key) return std::unexpected(key.error());
   if (!key->empty() && key->size() != 3) {
@@ -411,6 +413,7 @@ Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
   options.threshold = static_cast<int>(*threshold);
   options.min_contrast = *min_contrast;
   options.difference_threshold = *difference;
+  options.background_file = *background_file;
   options.chroma_key_bgr = *key;
   options.chroma_fraction = *fraction;
   options.roi_px = *roi;

@@ -57,13 +57,14 @@ struct RenderOutput {
   cv::Mat surface;    // CV_8UC1 SurfaceId per pixel centre
 };
 
-// Shading: colour = 255 * albedo * (kAmbient + kDiffuse * max(0, n . l)), l toward a point
+// Shading: colour = 255 * albedo * (kAmbient + kDiffuse * max(0, n . l)) (at most 242 for a white
+// texel, so a correctly exposed frame does not clip), l toward a point
 // light at (kLightRight, kLightDown, 0) * D in the camera frame, D being the camera's distance
 // to the object's mid-height point on the axis (so: up and to the left of the lens). The strong
 // ambient term stands for a soft-box: the limb, where Lambert falls to zero, keeps ~3/4 of the
 // object's mean level, so Otsu's threshold cuts edge pixels near half coverage.
-inline constexpr double kAmbient = 0.7;
-inline constexpr double kDiffuse = 0.35;
+inline constexpr double kAmbient = 0.65;
+inline constexpr double kDiffuse = 0.3;
 inline constexpr double kLightRight = -0.2;
 inline constexpr double kLightDown = -0.3;
 

@@ -43,7 +43,7 @@ class StationCommandsImpl final : public StationCommands {
     reconstruct_->add_option("--out", out_,
                              "Output folder (default: SCAN_DIR/model; required with --images)");
     reconstruct_->add_option("--method", method_,
-                             "hull or meridian (--images only; default: the scan's, else hull)");
+                             "hull or meridian (default: the scan's, with --images hull)");
     reconstruct_->add_option("--resolution", resolution_,
                              "Voxels along the longest side, 16..1024 (default: the scan's, else "
                              "192)");

@@ -1,5 +1,6 @@
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -8,6 +9,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "station/scan_session.h"
 
@@ -57,6 +59,22 @@ class ScanSessionTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
+
+  // Opens the devices of `cfg` and runs one scan into dir_; `notes` collects the events' notes
+  // (terminal events excluded).
+  Expected<ScanResult> RunScan(const StationConfig& cfg,
+                               std::vector<std::string>* notes = nullptr) {
+    auto devices = OpenDevices(cfg);
+    if (!devices) return std::unexpected(devices.error());
+    auto folder = ScanFolder::Create(dir_);
+    if (!folder) return std::unexpected(folder.error());
+    ScanSession session(cfg, *devices, *folder);
+    session.OnEvent([notes](const ScanEvent& e) {
+      if (notes != nullptr && !e.note.empty() && !IsTerminal(e.state)) notes->push_back(e.note);
+    });
+    return session.Run(std::stop_token());
+  }
+
   fs::path dir_;
 };
 
@@ -208,6 +226,91 @@ TEST_F(ScanSessionTest, ACameraThatStaysLostFailsTheScanCleanly) {
   EXPECT_EQ(manifest["error"]["code"], "no_device");
   EXPECT_EQ(manifest["stops_done"], 2);
   EXPECT_TRUE(fs::exists(dir_ / "frames/stop_001.png"));
+}
+
+// The quality gates: a bad frame is captured again; one that stays bad is kept with a warning
+// in the manifest, and the scan still completes.
+TEST_F(ScanSessionTest, ABlankFrameIsCapturedAgainAndTheScanIsClean) {
+  StationConfig cfg = QuickConfig(4);
+  cfg.station.simulate.camera_glitch = "blank";
+  cfg.station.simulate.camera_glitch_after = 2;  // stop 2's first capture
+  cfg.station.simulate.camera_glitch_count = 1;
+  std::vector<std::string> notes;
+  auto result = RunScan(cfg, &notes);
+  ASSERT_TRUE(result.has_value()) << result.error().message;
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("stop 2:"), std::string::npos) << notes[0];
+  EXPECT_NE(notes[0].find("capturing again (1 of 2)"), std::string::npos) << notes[0];
+  const auto manifest = ReadJson(dir_ / "manifest.json");
+  EXPECT_EQ(manifest["state"], "complete");
+  for (const auto& stop : manifest["stops"]) EXPECT_FALSE(stop.contains("quality")) << stop;
+  EXPECT_GT(manifest["stops"][2]["mask_area_px"].get<int>(), 1000);
+}
+
+TEST_F(ScanSessionTest, AFrameThatStaysBadIsKeptWithAWarning) {
+  for (const auto& [glitch, code] : std::vector<std::pair<std::string, std::string>>{
+           {"blank", "empty_mask"}, {"blurred", "blurred"}, {"overexposed", "overexposed"}}) {
+    SCOPED_TRACE(glitch);
+    fs::remove_all(dir_);
+    StationConfig cfg = QuickConfig(4);
+    cfg.quality.recaptures = 1;
+    cfg.station.simulate.camera_glitch = glitch;
+    cfg.station.simulate.camera_glitch_after = 1;  // stop 1, both captures
+    cfg.station.simulate.camera_glitch_count = 2;
+    std::vector<std::string> notes;
+    auto result = RunScan(cfg, &notes);
+    ASSERT_TRUE(result.has_value()) << result.error().message;
+    ASSERT_EQ(notes.size(), 2u);
+    EXPECT_NE(notes[0].find("capturing again (1 of 1)"), std::string::npos) << notes[0];
+    EXPECT_NE(notes[1].find("stop 1: warning:"), std::string::npos) << notes[1];
+    const auto manifest = ReadJson(dir_ / "manifest.json");
+    EXPECT_EQ(manifest["state"], "complete");
+    ASSERT_TRUE(manifest["stops"][1].contains("quality")) << manifest["stops"][1];
+    std::vector<std::string> codes;
+    for (const auto& w : manifest["stops"][1]["quality"]) {
+      codes.push_back(w["code"]);
+      EXPECT_FALSE(w["message"].get<std::string>().empty());
+    }
+    EXPECT_NE(std::find(codes.begin(), codes.end(), code), codes.end()) << manifest["stops"][1];
+    for (int k : {0, 2, 3}) EXPECT_FALSE(manifest["stops"][k].contains("quality")) << k;
+  }
+}
+
+// [segment] background_file: the empty scene from a file (as a real camera needs), and a clear
+// error when the file is missing.
+TEST_F(ScanSessionTest, TheBackgroundMethodTakesTheEmptySceneFromAFile) {
+  StationConfig cfg = QuickConfig(4);
+  cfg.segment.method = "background";
+  const fs::path empty =
+      fs::temp_directory_path() / ("revolve_session_empty_" + std::to_string(::getpid()) + ".png");
+  {
+    auto devices = OpenDevices(cfg);
+    ASSERT_TRUE(devices.has_value()) << devices.error().message;
+    ASSERT_TRUE(devices->camera->Start().has_value());
+    auto frame = devices->camera->CaptureBackground(capture::Clock::now(), std::chrono::seconds(5));
+    ASSERT_TRUE(frame.has_value()) << frame.error().message;
+    ASSERT_TRUE(cv::imwrite(empty.string(), frame->image));
+  }
+  cfg.segment.background_file = empty;
+  {
+    auto result = RunScan(cfg);
+    ASSERT_TRUE(result.has_value()) << result.error().message;
+    const auto manifest = ReadJson(dir_ / "manifest.json");
+    for (const auto& stop : manifest["stops"]) {
+      EXPECT_GT(stop["mask_area_px"].get<int>(), 1000) << stop;
+      EXPECT_FALSE(stop.contains("quality")) << stop;
+    }
+    EXPECT_TRUE(fs::exists(dir_ / "frames" / "background.png"));
+  }
+  fs::remove(empty);
+  fs::remove_all(dir_);
+  cfg.segment.background_file = empty;  // now missing
+  auto result = RunScan(cfg);
+  ASSERT_FALSE(result.has_value());
+  EXPECT_NE(result.error().message.find("[segment] background_file"), std::string::npos)
+      << result.error().message;
+  EXPECT_NE(result.error().message.find(empty.string()), std::string::npos);
+  EXPECT_EQ(ReadJson(dir_ / "manifest.json")["state"], "failed");
 }
 
 TEST_F(ScanSessionTest, ADriveAlarmFailsTheScanWithTheAlarmCode) {

@@ -1,0 +1,25 @@
+// Folders of images as the station reads them (replay camera, `revolve reconstruct --images`,
+// `revolve calibrate --images`): which files are images, and their order.
+#pragma once
+
+#include <filesystem>
+#include <string_view>
+#include <vector>
+
+#include "base/error.h"
+
+namespace revolve {
+
+// True for the image types every reader here accepts: .png .jpg .jpeg .tif .tiff .bmp .pgm .ppm,
+// in any case.
+bool IsImageFile(const std::filesystem::path& path);
+
+// "Natural" order: digit runs compare as numbers, so "img2.png" < "img10.png" and
+// "shoe9" < "shoe10"; otherwise byte order.
+bool NaturalLess(std::string_view a, std::string_view b);
+
+// The image files directly in `dir`, in natural order of their names; possibly none.
+// Errors: not_found naming `dir` when it is not a folder; io when it cannot be listed.
+Expected<std::vector<std::filesystem::path>> ListImageFiles(const std::filesystem::path& dir);
+
+}  // namespace revolve
