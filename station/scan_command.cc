@@ -33,10 +33,12 @@ void PrintSummary(std::ostream& out, const ScanFolder& folder, const StationConf
   for (const auto& f : r.model_files) files += (files.empty() ? "" : ", ") + f;
   fmt::print(out, "  model        {} ({} triangles, {} vertices, {})\n", files, r.triangles,
              r.vertices, model["watertight"].get<bool>() ? "watertight" : "NOT watertight");
-  const auto& dim = model["dimensions_mm"];
-  fmt::print(out, "  size         {:.1f} x {:.1f} x {:.1f} mm, volume {:.0f} mm^3\n",
-             dim[0].get<double>(), dim[1].get<double>(), dim[2].get<double>(),
-             model["volume_mm3"].get<double>());
+  const std::string unit = r.report.value("units", std::string("mm"));
+  const auto& dim = model["dimensions_" + unit];
+  fmt::print(out, "  size         {:.1f} x {:.1f} x {:.1f} {}, volume {:.0f} {}^3{}\n",
+             dim[0].get<double>(), dim[1].get<double>(), dim[2].get<double>(), unit,
+             model["volume_" + unit + "3"].get<double>(), unit,
+             unit == "mm" ? "" : " (no calibration: scale unknown)");
   if (r.report.contains("accuracy")) {
     const nlohmann::json& a = r.report["accuracy"];
     fmt::print(out, "  accuracy     against the true {}: volume {:+.2f}%",

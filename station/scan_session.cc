@@ -17,30 +17,12 @@
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
 #include "station/scan_geometry.h"
+#include "station/timing.h"
 
 namespace revolve::station {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-Clock::time_point DeadlineIn(double seconds) {
-  return Clock::now() +
-         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-}
-
-// Sleeps `ms`, returning early when a stop is requested.
-void SleepFor(std::stop_token stop, double ms) {
-  if (ms <= 0.0) return;
-  std::mutex mutex;
-  std::condition_variable_any wake;
-  std::unique_lock lock(mutex);
-  (void)wake.wait_for(lock, stop, std::chrono::duration<double, std::milli>(ms),
-                      [] { return false; });
-}
 
 // The accepted stops next to stop k (k-1 and k+1; around the end when the plan is a full
 // turn), for the quality gates' jump checks.
@@ -578,14 +560,16 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   report["stops_done"] = result.stops_done;
   // units ("mm" | "px"), scale, camera model, calibration, silhouette axis.
   report.update(geometry->ReportJson());
+  // Lengths in the model's unit, named by it: _mm with a metric geometry, _px in thesis mode.
+  const std::string unit = geometry->metric() ? "mm" : "px";
   report["model"] = {{"files", result.model_files},
                      {"vertices", stats.vertex_count},
                      {"triangles", stats.triangle_count},
-                     {"volume_mm3", stats.volume_mm3},
-                     {"surface_area_mm2", stats.area_mm2},
-                     {"bbox_min_mm", Vec3Json(stats.bbox_min_mm)},
-                     {"bbox_max_mm", Vec3Json(stats.bbox_max_mm)},
-                     {"dimensions_mm", Vec3Json(stats.bbox_max_mm - stats.bbox_min_mm)},
+                     {"volume_" + unit + "3", stats.volume_mm3},
+                     {"surface_area_" + unit + "2", stats.area_mm2},
+                     {"bbox_min_" + unit, Vec3Json(stats.bbox_min_mm)},
+                     {"bbox_max_" + unit, Vec3Json(stats.bbox_max_mm)},
+                     {"dimensions_" + unit, Vec3Json(stats.bbox_max_mm - stats.bbox_min_mm)},
                      {"watertight", stats.closed},
                      {"consistently_oriented", stats.oriented}};
   // The quality gates' warnings of the kept stops (the manifest has them per stop).

@@ -4,14 +4,12 @@
 // accuracy against the truth) and without it (thesis mode: pixels, scale unknown), rebuilding
 // both scans with `revolve reconstruct SCAN_DIR`, and `revolve calibrate check` passing the
 // unchanged rig and failing a moved camera.
-#include <sys/wait.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -23,6 +21,7 @@
 #include "calibrate/silhouette_axis.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
+#include "tests/support/test_files.h"
 
 namespace fs = std::filesystem;
 
@@ -31,18 +30,8 @@ namespace {
 
 namespace rig = calibration_rig;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadAll(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test_support::ReadAll;
+using test_support::RunResult;
 
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
@@ -55,27 +44,15 @@ constexpr double kAxisStepDeg = 15.0;
 class CalibratedScanTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("revolve_calibrated_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test_support::FreshTestDir("revolve_calibrated");
   }
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }
 
   RunResult Run(const std::string& args) {
-    const fs::path out = dir_ / "stdout.txt";
-    const fs::path err = dir_ / "stderr.txt";
-    const std::string cmd = "cd " + dir_.string() + " && " + std::string(REVOLVE_BIN) + " " + args +
-                            " >" + out.string() + " 2>" + err.string() + " </dev/null";
-    const int status = std::system(cmd.c_str());
-    RunResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = ReadAll(out);
-    r.err = ReadAll(err);
-    return r;
+    return test_support::RunShell(
+        "cd " + dir_.string() + " && " + std::string(REVOLVE_BIN) + " " + args, dir_);
   }
 
   void Write(const std::string& name, const std::string& text) {
@@ -195,11 +172,13 @@ TEST_F(CalibratedScanTest, WithoutCalibrationTheScaleIsUnknown) {
   Write("scan.toml", ScanToml(false));
   const RunResult scan = Run("scan --config scan.toml --out scan_px");
   ASSERT_EQ(scan.exit_code, 0) << scan.err << scan.out;
+  EXPECT_NE(scan.out.find(" px^3 (no calibration: scale unknown)"), std::string::npos) << scan.out;
   EXPECT_FALSE(fs::exists(dir_ / "scan_px" / "calibration.toml"));
   const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "scan_px" / "report.json"));
   EXPECT_EQ(report["units"], "px");
   EXPECT_EQ(report["scale"], "unknown");
   EXPECT_FALSE(report.contains("accuracy"));  // the truth is in mm
+  EXPECT_FALSE(report["model"].contains("volume_mm3")) << "pixels are not millimetres";
   // The axis line fitted to the silhouettes replaces the middle column.
   const nlohmann::json& axis = report["silhouette_axis"];
   ASSERT_TRUE(axis.contains("column_px")) << axis.dump();
@@ -219,8 +198,8 @@ TEST_F(CalibratedScanTest, WithoutCalibrationTheScaleIsUnknown) {
       "the true sphere's\n",
       axis["column_px"].get<double>(), true_column, fit.radius_mm, fit.radius_mm / px_per_mm,
       px_per_mm, 100.0 * (fit.radius_mm / px_per_mm - 40.0) / 40.0,
-      report["model"]["volume_mm3"].get<double>(),
-      100.0 * (report["model"]["volume_mm3"].get<double>() / std::pow(px_per_mm, 3) /
+      report["model"]["volume_px3"].get<double>(),
+      100.0 * (report["model"]["volume_px3"].get<double>() / std::pow(px_per_mm, 3) /
                    (4.0 / 3.0 * M_PI * 40.0 * 40.0 * 40.0) -
                1.0));
   EXPECT_GT(fit.radius_mm, 0.9 * 40.0 * px_per_mm);
