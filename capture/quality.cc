@@ -106,6 +106,17 @@ StopStats MeasureStop(const cv::Mat& image, const cv::Mat& mask) {
   return stats;
 }
 
+bool IsBinaryImage(const cv::Mat& image) {
+  for (int y = 0; y < image.rows; ++y) {
+    const std::uint8_t* row = image.ptr<std::uint8_t>(y);
+    const int n = image.cols * image.channels();
+    for (int i = 0; i < n; ++i) {
+      if (row[i] != 0 && row[i] != 255) return false;
+    }
+  }
+  return true;
+}
+
 StopAssessment AssessStop(const cv::Mat& image, const cv::Mat& mask,
                           std::span<const StopStats> neighbours, const QualityOptions& options) {
   StopAssessment a;
@@ -135,18 +146,21 @@ StopAssessment AssessStop(const cv::Mat& image, const cv::Mat& mask,
                      "centre; move the camera back or centre the object",
                      fmt::join(sides, " and ")));
   }
-  if (s.clipped_fraction > options.max_clipped_fraction) {
+  // A binary silhouette image (the thesis's input, served by the replay camera) is all "clipped"
+  // by design: exposure and blur say nothing about it.
+  const bool photo = !IsBinaryImage(image);
+  if (photo && s.clipped_fraction > options.max_clipped_fraction) {
     warn("overexposed",
          fmt::format("{:.1f}% of the object's pixels are clipped white: lower exposure_us or gain",
                      100.0 * s.clipped_fraction));
   }
-  if (s.crushed_fraction > options.max_clipped_fraction) {
+  if (photo && s.crushed_fraction > options.max_clipped_fraction) {
     warn("underexposed",
          fmt::format("{:.1f}% of the object's pixels are clipped black: raise exposure_us, gain "
                      "or the light",
                      100.0 * s.crushed_fraction));
   }
-  if (s.edge_width_px > options.max_edge_width_px) {
+  if (photo && s.edge_width_px > options.max_edge_width_px) {
     warn("blurred",
          fmt::format("the silhouette's edge is {:.1f} px wide (at most {:.1f} expected): check "
                      "the focus, or the table was still moving (raise settle_ms)",

@@ -64,10 +64,15 @@ struct StopAssessment {
 // Measures a frame (CV_8UC1/3/4) and its mask (CV_8UC1, same size, 0/255).
 StopStats MeasureStop(const cv::Mat& image, const cv::Mat& mask);
 
-// Runs every gate on one stop. `neighbours` are the stats of the stops next to it that are
-// already accepted (the previous stop; at the last stop also the first), for the jump gates.
-// With options.enabled false, measures only. An empty mask skips the gates that need a
-// silhouette. Contract: image and mask as for MeasureStop.
+// True when every sample of `image` (CV_8U, any channels) is 0 or 255: a binary silhouette
+// image rather than a photo.
+bool IsBinaryImage(const cv::Mat& image);
+
+// Runs every gate on one stop. A binary silhouette image skips the exposure and blur gates.
+// `neighbours` are the stats of the stops next to it that are already accepted (the previous stop;
+// at the last stop also the first), for the jump gates. With options.enabled false, measures only.
+// An empty mask skips the gates that need a silhouette. Contract: image and mask as for
+// MeasureStop.
 StopAssessment AssessStop(const cv::Mat& image, const cv::Mat& mask,
                           std::span<const StopStats> neighbours, const QualityOptions& options);
 

@@ -79,6 +79,21 @@ TEST(Quality, ClippedExposureIsReported) {
   EXPECT_TRUE(Has(AssessStop(dark, mask, {}, QualityOptions{}), "underexposed"));
 }
 
+TEST(Quality, ABinarySilhouetteImageIsNotAnExposureProblem) {
+  // The thesis's input: a white silhouette on black, served as the frame.
+  auto camera = Camera();
+  const cv::Mat mask = Segment(camera->Render(0.0, 1));
+  cv::Mat silhouette;
+  cv::cvtColor(mask, silhouette, cv::COLOR_GRAY2BGR);
+  EXPECT_TRUE(IsBinaryImage(silhouette));
+  const StopAssessment a = AssessStop(silhouette, mask, {}, QualityOptions{});
+  EXPECT_TRUE(a.ok()) << (a.ok() ? "" : a.warnings[0].message);
+  // The same frame with one grey pixel is a photo again, and a blown-out one.
+  silhouette.at<cv::Vec3b>(0, 0) = cv::Vec3b(20, 20, 20);
+  EXPECT_FALSE(IsBinaryImage(silhouette));
+  EXPECT_TRUE(Has(AssessStop(silhouette, mask, {}, QualityOptions{}), "overexposed"));
+}
+
 TEST(Quality, ABlurredFrameIsReported) {
   SyntheticOptions o;
   o.blur_sigma_px = 2.5;
