@@ -178,23 +178,50 @@ VisualHull::Sat VisualHull::MakeSat(const ViewData& view) {
 VisualHull::BlockClass VisualHull::Classify(const ViewData& view, const Sat& sat,
                                             const Eigen::Vector3i& lo,
                                             const Eigen::Vector3i& hi) const {
-  Eigen::Vector3d corners[8];
-  for (int c = 0; c < 8; ++c) {
-    corners[c] =
-        grid_.Centre(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(), c & 4 ? hi.z() : lo.z());
+  // Project's products for the two values of each coordinate, summed in Project's order (the
+  // same value as projecting each corner).
+  const Matrix34d& p = view.pixel_from_object;
+  const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
+  const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
+  double px[2][3], py[2][3], pz[2][3];
+  for (int r = 0; r < 3; ++r) {
+    px[0][r] = p(r, 0) * l.x();
+    px[1][r] = p(r, 0) * h.x();
+    py[0][r] = p(r, 1) * l.y();
+    py[1][r] = p(r, 1) * h.y();
+    pz[0][r] = p(r, 2) * l.z();
+    pz[1][r] = p(r, 2) * h.z();
   }
-  return ClassifyHull(view, sat, corners, 8);
+  double projected[8][3];
+  for (int c = 0; c < 8; ++c) {
+    const int x = c & 1, y = (c >> 1) & 1, z = c >> 2;
+    for (int r = 0; r < 3; ++r) projected[c][r] = px[x][r] + py[y][r] + pz[z][r] + p(r, 3);
+  }
+  return ClassifyProjected(view, sat, projected, 8);
 }
 
 VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat& sat,
                                                 const Eigen::Vector3d* points, int count) {
+  double projected[8][3];
+  count = std::min(count, 8);
+  for (int c = 0; c < count; ++c) {
+    const Homogeneous h = Project(view.pixel_from_object, points[c]);
+    projected[c][0] = h.x;
+    projected[c][1] = h.y;
+    projected[c][2] = h.w;
+  }
+  return ClassifyProjected(view, sat, projected, count);
+}
+
+VisualHull::BlockClass VisualHull::ClassifyProjected(const ViewData& view, const Sat& sat,
+                                                     const double (*projected)[3], int count) {
   double u_min = std::numeric_limits<double>::infinity();
   double v_min = u_min;
   double u_max = -u_min;
   double v_max = -u_min;
   int in_front = 0;
   for (int c = 0; c < count; ++c) {
-    const Homogeneous h = Project(view.pixel_from_object, points[c]);
+    const Homogeneous h{projected[c][0], projected[c][1], projected[c][2]};
     if (!(h.w > 0.0)) {
       continue;
     }
@@ -250,9 +277,10 @@ VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat&
   if (mask_count == 0 && rect_inside) {
     return BlockClass::kCarve;
   }
-  return BlockClass::kMixed;
+  return rect_inside ? BlockClass::kMixedInImage : BlockClass::kMixed;
 }
 
+template <bool kInImage>
 bool VisualHull::CarveBrick(const ViewData& view, const Eigen::Vector3i& brick) {
   std::uint64_t& word = bricks_[BrickIndex(brick)];
   const Matrix34d& p = view.pixel_from_object;
@@ -271,6 +299,8 @@ bool VisualHull::CarveBrick(const ViewData& view, const Eigen::Vector3i& brick) 
       pz[d][r] = p(r, 2) * c.z();
     }
   }
+  const std::uint8_t* mask = view.mask01.data;
+  const std::size_t step = view.mask01.step[0];
   std::uint64_t carved = 0;
   for (std::uint64_t remaining = word; remaining != 0; remaining &= remaining - 1) {
     const int bit = std::countr_zero(remaining);
@@ -280,7 +310,22 @@ bool VisualHull::CarveBrick(const ViewData& view, const Eigen::Vector3i& brick) 
     const double hx = px[x][0] + py[y][0] + pz[z][0] + p(0, 3);
     const double hy = px[x][1] + py[y][1] + pz[z][1] + p(1, 3);
     const double hw = px[x][2] + py[y][2] + pz[z][2] + p(2, 3);
-    carved |= std::uint64_t{!SurvivesProjected(view, hx, hy, hw)} << bit;
+    bool survives;
+    if constexpr (kInImage) {
+      // SurvivesProjected without the image bounds: the block's rectangle of nearest pixels
+      // (widened by kRectMarginPx, far above the rounding of a projection) is inside the image.
+      if (!(hw > 0.0)) {
+        survives = true;
+      } else {
+        const double inv_w = 1.0 / hw;
+        const double fu = hx * inv_w + 0.5;
+        const double fv = hy * inv_w + 0.5;
+        survives = mask[step * static_cast<int>(fv) + static_cast<int>(fu)] != 0;
+      }
+    } else {
+      survives = SurvivesProjected(view, hx, hy, hw);
+    }
+    carved |= std::uint64_t{!survives} << bit;
   }
   word &= ~carved;
   return word != 0;
@@ -322,17 +367,20 @@ bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level,
   const Eigen::Vector3i lo = node * size;
   const Eigen::Vector3i hi =
       (lo + Eigen::Vector3i::Constant(size - 1)).cwiseMin(grid_.dims - Eigen::Vector3i::Ones());
-  switch (Classify(view, sat, lo, hi)) {
+  const BlockClass block_class = Classify(view, sat, lo, hi);
+  switch (block_class) {
     case BlockClass::kUnaffected:
       return true;
     case BlockClass::kCarve:
       ClearBlock(level, node);
       return false;
     case BlockClass::kMixed:
+    case BlockClass::kMixedInImage:
       break;
   }
   if (level == 0) {
-    return CarveBrick(view, node);
+    return block_class == BlockClass::kMixedInImage ? CarveBrick<true>(view, node)
+                                                    : CarveBrick<false>(view, node);
   }
   bool any = false;
   const Eigen::Vector3i& child_dims = level_dims_[level - 1];
@@ -676,7 +724,10 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
           const Eigen::Vector3d a = grid_.Centre(item.inside.x(), item.inside.y(), item.inside.z());
           Eigen::Vector3d d = Eigen::Vector3d::Zero();
           d[item.axis] = item.sign * grid_.voxel_mm;
-          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, item.t_max));
+          // Only the part before the nearest exit found so far can matter: the walk of the
+          // shorter segment visits a prefix of the same cells (the same result where it
+          // matters), and its end rectangle is smaller, so it more often ends at once.
+          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, std::min(item.t_max, t_item[k])));
         }
       }
     }

@@ -125,7 +125,9 @@ class VisualHull {
     cv::Rect roi;    // bounding rectangle of the non-zero pixels
   };
   struct Sat;  // per-view summed-area table, lives only during Integrate or ExtractSurface
-  enum class BlockClass { kUnaffected, kCarve, kMixed };
+  // kMixedInImage: kMixed, with every corner in front of the camera and the rectangle of
+  // nearest pixels inside the image (so are those of every point of the block).
+  enum class BlockClass { kUnaffected, kCarve, kMixed, kMixedInImage };
 
   Expected<ViewData> Prepare(const cv::Mat& mask, const View& view) const;
   // The point test for voxel (i, j, k): true = survives `view`.
@@ -136,9 +138,13 @@ class VisualHull {
   // How `view` acts on the voxel centres lo..hi (inclusive).
   BlockClass Classify(const ViewData& view, const Sat& sat, const Eigen::Vector3i& lo,
                       const Eigen::Vector3i& hi) const;
-  // How `view` acts on the convex hull of `points` (kUnaffected: on none of its points).
+  // How `view` acts on the convex hull of `points` (kUnaffected: on none of its points);
+  // count <= 8.
   static BlockClass ClassifyHull(const ViewData& view, const Sat& sat,
                                  const Eigen::Vector3d* points, int count);
+  // ClassifyHull on the points' projections P * [X; 1] (x, y, w).
+  static BlockClass ClassifyProjected(const ViewData& view, const Sat& sat,
+                                      const double (*projected)[3], int count);
   // Where every cut edge first leaves the hull (see ExtractSurface).
   std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges,
                                    std::optional<double> clip_below_z_mm, bool cull_views) const;
@@ -149,6 +155,8 @@ class VisualHull {
   // Returns whether the block still holds occupied voxels.
   bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node);
   void ClearBlock(int level, const Eigen::Vector3i& node);
+  // kInImage: every voxel centre's nearest pixel is known to lie inside the image.
+  template <bool kInImage>
   bool CarveBrick(const ViewData& view, const Eigen::Vector3i& brick);
   void RebuildFlags();
 

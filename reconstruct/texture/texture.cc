@@ -46,17 +46,22 @@ struct ViewGeometry {
 
   // Pixel of x; false behind the camera.
   bool Project(const Eigen::Vector3f& x, float* u, float* v) const {
-    const Eigen::Vector3f h = p.leftCols<3>() * x + p.col(3);
-    if (!(h.z() > 0.0f)) {
+    // Written out: Eigen's expression is not inlined here and this runs per vertex and view.
+    const float hw = p(2, 0) * x.x() + p(2, 1) * x.y() + p(2, 2) * x.z() + p(2, 3);
+    if (!(hw > 0.0f)) {
       return false;
     }
-    *u = h.x() / h.z();
-    *v = h.y() / h.z();
+    *u = (p(0, 0) * x.x() + p(0, 1) * x.y() + p(0, 2) * x.z() + p(0, 3)) / hw;
+    *v = (p(1, 0) * x.x() + p(1, 1) * x.y() + p(1, 2) * x.z() + p(1, 3)) / hw;
     return true;
   }
   float Depth(const Eigen::Vector3f& x) const { return depth_row.head<3>().dot(x) + depth_row[3]; }
   Eigen::Vector3f ToCamera(const Eigen::Vector3f& x) const {
-    return affine ? direction : Eigen::Vector3f((centre - x).normalized());
+    if (affine) return direction;
+    const float dx = centre.x() - x.x(), dy = centre.y() - x.y(), dz = centre.z() - x.z();
+    const float squared = dx * dx + dy * dy + dz * dz;
+    const float inv = squared > 0.0f ? 1.0f / std::sqrt(squared) : 0.0f;
+    return Eigen::Vector3f(dx * inv, dy * inv, dz * inv);
   }
   bool InImage(float u, float v) const {
     return u >= -0.5f && v >= -0.5f && u < width - 0.5f && v < height - 0.5f;
@@ -64,24 +69,35 @@ struct ViewGeometry {
 };
 
 // The nearest depth of the vertices facing the camera in each cell of cell_px x cell_px pixels.
+// Only the cells of `window` (pixels; the mesh's projection) are stored: the others hold no
+// vertex, so they read as infinitely far, as they would in a full table (and the table stays
+// small enough for the cache).
 class DepthCells {
  public:
-  DepthCells(int width, int height, int cell_px)
+  DepthCells(int width, int height, int cell_px, float u_min, float v_min, float u_max, float v_max)
       : inv_cell_(1.0f / static_cast<float>(cell_px)),
-        cols_((width + cell_px - 1) / cell_px + 1),
-        rows_((height + cell_px - 1) / cell_px + 1),
-        depth_(static_cast<std::size_t>(cols_) * rows_) {}
-  void Clear() { std::fill(depth_.begin(), depth_.end(), std::numeric_limits<float>::infinity()); }
+        all_cols_((width + cell_px - 1) / cell_px + 1),
+        all_rows_((height + cell_px - 1) / cell_px + 1) {
+    // One cell of margin against rounding; the window is clamped to the table.
+    c0_ = std::clamp(Cell(u_min, all_cols_) - 1, 0, all_cols_ - 1);
+    r0_ = std::clamp(Cell(v_min, all_rows_) - 1, 0, all_rows_ - 1);
+    const int c1 = std::clamp(Cell(u_max, all_cols_) + 1, c0_, all_cols_ - 1);
+    const int r1 = std::clamp(Cell(v_max, all_rows_) + 1, r0_, all_rows_ - 1);
+    cols_ = c1 - c0_ + 1;
+    rows_ = r1 - r0_ + 1;
+    depth_.assign(static_cast<std::size_t>(cols_) * rows_, std::numeric_limits<float>::infinity());
+  }
   void Splat(float u, float v, float depth) {
-    const int c = Cell(u, cols_);
-    const int r = Cell(v, rows_);
-    if (c < 0 || r < 0 || c >= cols_ || r >= rows_) return;
+    const unsigned c = static_cast<unsigned>(Cell(u, all_cols_) - c0_);
+    const unsigned r = static_cast<unsigned>(Cell(v, all_rows_) - r0_);
+    if (c >= static_cast<unsigned>(cols_) || r >= static_cast<unsigned>(rows_)) return;
     float& cell = depth_[static_cast<std::size_t>(r) * cols_ + c];
     cell = std::min(cell, depth);
   }
   float At(float u, float v) const {
-    const int c = std::clamp(Cell(u, cols_), 0, cols_ - 1);
-    const int r = std::clamp(Cell(v, rows_), 0, rows_ - 1);
+    const int c = std::clamp(Cell(u, all_cols_), 0, all_cols_ - 1) - c0_;
+    const int r = std::clamp(Cell(v, all_rows_), 0, all_rows_ - 1) - r0_;
+    if (c < 0 || r < 0 || c >= cols_ || r >= rows_) return std::numeric_limits<float>::infinity();
     return depth_[static_cast<std::size_t>(r) * cols_ + c];
   }
 
@@ -94,8 +110,12 @@ class DepthCells {
   }
 
   float inv_cell_;
-  int cols_;
-  int rows_;
+  int all_cols_;  // the whole image's table
+  int all_rows_;
+  int c0_ = 0;  // the window's first cell
+  int r0_ = 0;
+  int cols_ = 0;
+  int rows_ = 0;
   std::vector<float> depth_;
 };
 
@@ -259,6 +279,13 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   for (Eigen::Vector3f& n : vertex_normal) {
     const float length = n.norm();
     n = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+  }
+  // Every vertex's box (lo and hi above take the faces' first corners only).
+  Eigen::Vector3f box_lo = vertices[0];
+  Eigen::Vector3f box_hi = box_lo;
+  for (const Eigen::Vector3f& x : vertices) {
+    box_lo = box_lo.cwiseMin(x);
+    box_hi = box_hi.cwiseMax(x);
   }
   const float mean_edge_mm = static_cast<float>(edge_sum / nf);
   const Eigen::Vector3f mesh_centre = 0.5f * (lo + hi);
@@ -473,8 +500,33 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     }
     const int cell_px =
         std::clamp(static_cast<int>(std::ceil(1.5f * mean_edge_mm / mm_per_px)), 1, 16);
-    DepthCells cells(g.width, g.height, cell_px);
-    cells.Clear();
+    // The window: the projection of the mesh's bounding box (the whole image when part of the
+    // box is behind the camera).
+    float u_min = -1.0f, v_min = -1.0f;
+    float u_max = static_cast<float>(g.width), v_max = static_cast<float>(g.height);
+    {
+      float w_u_min = std::numeric_limits<float>::infinity(), w_v_min = w_u_min;
+      float w_u_max = -w_u_min, w_v_max = -w_u_min;
+      bool all_in_front = true;
+      for (int c = 0; c < 8 && all_in_front; ++c) {
+        const Eigen::Vector3f corner(c & 1 ? box_hi.x() : box_lo.x(),
+                                     c & 2 ? box_hi.y() : box_lo.y(),
+                                     c & 4 ? box_hi.z() : box_lo.z());
+        float u = 0.0f, v = 0.0f;
+        all_in_front = g.Project(corner, &u, &v);
+        w_u_min = std::min(w_u_min, u);
+        w_u_max = std::max(w_u_max, u);
+        w_v_min = std::min(w_v_min, v);
+        w_v_max = std::max(w_v_max, v);
+      }
+      if (all_in_front) {
+        u_min = w_u_min;
+        v_min = w_v_min;
+        u_max = w_u_max;
+        v_max = w_v_max;
+      }
+    }
+    DepthCells cells(g.width, g.height, cell_px, u_min, v_min, u_max, v_max);
     const float margin = view_margin[k];
     // Every vertex facing the camera (within the margin) and in front of it is splatted; the
     // facing test comes first, so the others cost three products.
