@@ -11,6 +11,8 @@
 
 #include <fmt/format.h>
 
+#include "base/unique_fd.h"
+
 namespace revolve {
 namespace {
 
@@ -18,26 +20,6 @@ Error IoError(const std::filesystem::path& path, std::string_view what, int err)
   return Error{err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
                fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
 }
-
-// RAII file descriptor.
-class Fd {
- public:
-  explicit Fd(int fd) : fd_(fd) {}
-  ~Fd() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-  int get() const { return fd_; }
-  int Release() {
-    const int fd = fd_;
-    fd_ = -1;
-    return fd;
-  }
-
- private:
-  int fd_;
-};
 
 std::filesystem::path TempPathFor(const std::filesystem::path& path) {
   return path.parent_path() /
@@ -48,7 +30,7 @@ std::filesystem::path TempPathFor(const std::filesystem::path& path) {
 
 Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::span<const char> bytes) {
   const std::filesystem::path tmp = TempPathFor(path);
-  Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+  UniqueFd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
   if (fd.get() < 0) return std::unexpected(IoError(path, "cannot create file", errno));
   const char* data = bytes.data();
   std::size_t left = bytes.size();
@@ -79,7 +61,7 @@ Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::span<
     return std::unexpected(IoError(path, "rename failed", err));
   }
   const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
-  Fd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
   if (dir_fd.get() >= 0) ::fsync(dir_fd.get());
   return {};
 }

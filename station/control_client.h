@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/error.h"
-#include "station/unique_fd.h"
+#include "base/unique_fd.h"
 
 namespace revolve::station {
 

@@ -26,12 +26,12 @@
 #include <fmt/format.h>
 
 #include "base/log.h"
+#include "base/unique_fd.h"
 #include "station/devices.h"
 #include "station/notify.h"
 #include "station/protocol.h"
 #include "station/scan_folder.h"
 #include "station/scan_session.h"
-#include "station/unique_fd.h"
 
 #ifndef REVOLVE_VERSION
 #define REVOLVE_VERSION "unknown"

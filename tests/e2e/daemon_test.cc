@@ -23,12 +23,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "base/unique_fd.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/control_client.h"
 #include "station/protocol.h"
-#include "station/unique_fd.h"
 #include "tests/e2e/daemon_harness.h"
+#include "tests/support/control_events.h"
 
 namespace revolve::e2e {
 namespace {
@@ -137,21 +138,7 @@ volume_height_mm = 90.0
   // Events until one in `states` arrives (or the timeout).
   std::vector<nlohmann::json> EventsUntil(ControlClient& c, const std::set<std::string>& states,
                                           std::chrono::seconds timeout = 90s) {
-    std::vector<nlohmann::json> events;
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < deadline) {
-      auto line = c.Receive(500ms);
-      if (!line) {
-        if (line.error().code == ErrorCode::kTimeout) continue;
-        ADD_FAILURE() << line.error().message;
-        return events;
-      }
-      if (!line->contains("event")) continue;
-      events.push_back((*line)["event"]);
-      if (states.contains(events.back()["state"].get<std::string>())) return events;
-    }
-    ADD_FAILURE() << "timed out waiting for an event";
-    return events;
+    return test_support::EventsUntil(c, states, timeout, 500ms);
   }
 
   fs::path dir_;
@@ -428,7 +415,7 @@ TEST_F(DaemonE2eTest, CheckConfigPrintsTheEffectiveConfig) {
 
 TEST_F(DaemonE2eTest, SdNotifyReadyStatusWatchdogAndStopping) {
   const fs::path notify = dir_ / "notify.sock";
-  station::UniqueFd fd(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  UniqueFd fd(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", notify.c_str());

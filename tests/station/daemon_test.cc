@@ -13,9 +13,10 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "base/unique_fd.h"
 #include "station/control_client.h"
 #include "station/daemon.h"
-#include "station/unique_fd.h"
+#include "tests/support/control_events.h"
 
 namespace revolve::station {
 namespace {
@@ -171,21 +172,7 @@ resolution = 32
   // Reads events until `state` (for any scan); returns them all.
   std::vector<nlohmann::json> EventsUntil(ControlClient& c, const std::string& state,
                                           std::chrono::seconds timeout = 60s) {
-    std::vector<nlohmann::json> events;
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < deadline) {
-      auto line = c.Receive(1000ms);
-      if (!line) {
-        if (line.error().code == ErrorCode::kTimeout) continue;
-        ADD_FAILURE() << line.error().message;
-        return events;
-      }
-      if (!line->contains("event")) continue;
-      events.push_back((*line)["event"]);
-      if (events.back()["state"] == state) return events;
-    }
-    ADD_FAILURE() << "no " << state << " event within the timeout";
-    return events;
+    return test_support::EventsUntil(c, {state}, timeout, 1000ms);
   }
 
   nlohmann::json Status() {

@@ -19,38 +19,12 @@
 #include <fmt/format.h>
 
 #include "base/log.h"
+#include "base/unique_fd.h"
 
 namespace revolve::turntable::modbus {
 namespace {
 
 using SteadyClock = std::chrono::steady_clock;
-
-// Owns a file descriptor.
-class Fd {
- public:
-  Fd() = default;
-  explicit Fd(int fd) : fd_(fd) {}
-  ~Fd() { Reset(); }
-  Fd(Fd&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
-  Fd& operator=(Fd&& other) noexcept {
-    if (this != &other) {
-      Reset();
-      fd_ = std::exchange(other.fd_, -1);
-    }
-    return *this;
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-  int get() const { return fd_; }
-  bool valid() const { return fd_ >= 0; }
-  void Reset() {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-  }
-
- private:
-  int fd_ = -1;
-};
 
 bool WriteAll(int fd, std::span<const std::uint8_t> bytes) {
   std::size_t done = 0;
@@ -99,7 +73,7 @@ Expected<void> ServeTcp(SimulatedDrive& drive, const SimServerOptions& options,
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("cannot resolve {}: {}", options.host, gai_strerror(rc)));
   }
-  Fd listener(::socket(info->ai_family, SOCK_STREAM | SOCK_CLOEXEC, 0));
+  UniqueFd listener(::socket(info->ai_family, SOCK_STREAM | SOCK_CLOEXEC, 0));
   const int one = 1;
   ::setsockopt(listener.get(), SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
   const int bound = ::bind(listener.get(), info->ai_addr, info->ai_addrlen);
@@ -118,7 +92,7 @@ Expected<void> ServeTcp(SimulatedDrive& drive, const SimServerOptions& options,
   on_ready(fmt::format("listening on tcp {}:{}", options.host, port));
 
   struct Client {
-    Fd fd;
+    UniqueFd fd;
     std::vector<std::uint8_t> buffer;
   };
   std::vector<Client> clients;
@@ -136,7 +110,7 @@ Expected<void> ServeTcp(SimulatedDrive& drive, const SimServerOptions& options,
     std::size_t index = 0;
     if (listener.valid()) {
       if ((fds[0].revents & POLLIN) != 0) {
-        Fd client(::accept4(listener.get(), nullptr, nullptr, SOCK_CLOEXEC));
+        UniqueFd client(::accept4(listener.get(), nullptr, nullptr, SOCK_CLOEXEC));
         if (client.valid()) {
           ::setsockopt(client.get(), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
           clients.push_back(Client{std::move(client), {}});
@@ -221,7 +195,7 @@ Expected<void> ServeRtu(SimulatedDrive& drive, const SimServerOptions& options,
                         std::stop_token stop,
                         const std::function<void(const std::string&)>& on_ready) {
   auto log = Logger("turntable");
-  Fd fd(::open(options.device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+  UniqueFd fd(::open(options.device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
   if (!fd.valid()) {
     return MakeError(errno == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
                      fmt::format("cannot open {}: {}", options.device, std::strerror(errno)));

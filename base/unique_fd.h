@@ -5,7 +5,7 @@
 
 #include <utility>
 
-namespace revolve::station {
+namespace revolve {
 
 class UniqueFd {
  public:
@@ -25,13 +25,16 @@ class UniqueFd {
 
   int get() const { return fd_; }
   bool valid() const { return fd_ >= 0; }
+  // Closes the descriptor now (errors ignored); the object is then empty.
   void Reset() {
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
   }
+  // Gives up ownership without closing; the caller must close the result.
+  int Release() { return std::exchange(fd_, -1); }
 
  private:
   int fd_ = -1;
 };
 
-}  // namespace revolve::station
+}  // namespace revolve
