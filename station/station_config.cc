@@ -5,104 +5,36 @@
 
 #include <fmt/format.h>
 
+#include "config/reader.h"
+
 namespace revolve::station {
 namespace {
 
-// Collects the first error of a series of getters, so a parser reads as a list of keys.
-class Reader {
- public:
-  explicit Reader(const config::Section& section) : section_(section) {}
-
-  void Number(std::string_view key, double& out, double min, double max) {
-    if (error_) return;
-    if (Expected<double> v = section_.Number(key, out, min, max); v) {
-      out = *v;
-    } else {
-      error_ = v.error();
-    }
+// A GPIO line: an integer offset or a line name; `<key>_active_low` next to it.
+void ReadLine(config::Reader& r, std::string_view key, PanelLine& out, bool default_active_low) {
+  if (!r.ok()) return;
+  const config::Section& section = r.section();
+  out.active_low = default_active_low;
+  r.Boolean(fmt::format("{}_active_low", key), out.active_low);
+  if (!r.ok() || !section.Has(key)) {
+    (void)section.String(key, "");  // known, even when absent
+    return;
   }
-  template <class Int>
-  void Integer(std::string_view key, Int& out, std::int64_t min, std::int64_t max) {
-    if (error_) return;
-    if (Expected<std::int64_t> v = section_.Integer(key, out, min, max); v) {
-      out = static_cast<Int>(*v);
-    } else {
-      error_ = v.error();
-    }
+  if (Expected<std::int64_t> offset = section.Integer(key, -1, 0, 1023); offset) {
+    out.offset = static_cast<int>(*offset);
+    return;
   }
-  void Boolean(std::string_view key, bool& out) {
-    if (error_) return;
-    if (Expected<bool> v = section_.Boolean(key, out); v) {
-      out = *v;
-    } else {
-      error_ = v.error();
-    }
+  Expected<std::string> name = section.String(key, "");
+  if (!name || name->empty()) {
+    r.Fail(section.BadValue(key, "expected a line offset 0..1023 or a line name (\"GPIO17\")"));
+    return;
   }
-  void String(std::string_view key, std::string& out,
-              std::initializer_list<std::string_view> allowed = {}) {
-    if (error_) return;
-    if (Expected<std::string> v = section_.String(key, out, allowed); v) {
-      out = *v;
-    } else {
-      error_ = v.error();
-    }
-  }
-  void Strings(std::string_view key, std::vector<std::string>& out) {
-    if (error_) return;
-    if (Expected<std::vector<std::string>> v = section_.Strings(key, out); v) {
-      out = *v;
-    } else {
-      error_ = v.error();
-    }
-  }
-  // An optional value: set only when the key is present.
-  template <class T, class Get>
-  void Optional(std::string_view key, std::optional<T>& out, Get get) {
-    if (error_) return;
-    if (!section_.Has(key)) return;
-    T value{};
-    get(key, value);
-    if (!error_) out = std::move(value);
-  }
-  // A GPIO line: an integer offset or a line name; `<key>_active_low` next to it.
-  void Line(std::string_view key, PanelLine& out, bool default_active_low) {
-    if (error_) return;
-    out.active_low = default_active_low;
-    Boolean(fmt::format("{}_active_low", key), out.active_low);
-    if (error_ || !section_.Has(key)) {
-      (void)section_.String(key, "");  // known, even when absent
-      return;
-    }
-    if (Expected<std::int64_t> offset = section_.Integer(key, -1, 0, 1023); offset) {
-      out.offset = static_cast<int>(*offset);
-      return;
-    }
-    Expected<std::string> name = section_.String(key, "");
-    if (!name || name->empty()) {
-      error_ = section_.BadValue(key, "expected a line offset 0..1023 or a line name (\"GPIO17\")");
-      return;
-    }
-    out.name = *name;
-  }
-  void Fail(Error error) {
-    if (!error_) error_ = std::move(error);
-  }
-  // The first error, or the first unknown key of the table.
-  Expected<void> Finish() {
-    if (error_) return std::unexpected(*error_);
-    return section_.CheckNoUnknownKeys();
-  }
-  const config::Section& section() const { return section_; }
-  bool ok() const { return !error_.has_value(); }
-
- private:
-  const config::Section& section_;
-  std::optional<Error> error_;
-};
+  out.name = *name;
+}
 
 Expected<ScanOptions> ParseScanOptions(const config::Section& s) {
   ScanOptions o;
-  Reader r(s);
+  config::Reader r(s);
   r.Integer("stops", o.stops, 1, 3600);
   r.Number("step_deg", o.step_deg, 0.01, 360.0);
   r.Number("settle_ms", o.settle_ms, 0.0, 60000.0);
@@ -118,7 +50,7 @@ Expected<ScanOptions> ParseScanOptions(const config::Section& s) {
 
 Expected<SimulateOptions> ParseSimulateOptions(const config::Section& s) {
   SimulateOptions o;
-  Reader r(s);
+  config::Reader r(s);
   r.String("drive_fault", o.drive_fault, {"none", "stall", "alarm", "link_down"});
   r.Integer("drive_fault_move", o.drive_fault_move, 0, 1000000);
   r.Integer("drive_fault_count", o.drive_fault_count, 1, 1000000);
@@ -136,7 +68,7 @@ Expected<SimulateOptions> ParseSimulateOptions(const config::Section& s) {
 
 Expected<StationOptions> ParseStationOptions(const config::Section& s) {
   StationOptions o;
-  Reader r(s);
+  config::Reader r(s);
   r.String("recipe", o.recipe);
   r.String("scans_dir", o.scans_dir);
   if (r.ok() && o.scans_dir.empty()) r.Fail(s.BadValue("scans_dir", "must not be empty"));
@@ -156,7 +88,7 @@ Expected<StationOptions> ParseStationOptions(const config::Section& s) {
 
 Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
   DaemonOptions o;
-  Reader r(s);
+  config::Reader r(s);
   r.String("socket", o.socket);
   if (r.ok() && o.socket.empty()) r.Fail(s.BadValue("socket", "must not be empty"));
   if (r.ok() && o.socket.size() >= 108) {
@@ -190,12 +122,12 @@ Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
 
 Expected<OperatorOptions> ParseOperatorOptions(const config::Section& s) {
   OperatorOptions o;
-  Reader r(s);
+  config::Reader r(s);
   r.String("chip", o.chip);
-  r.Line("start_button", o.start_button, true);
-  r.Line("abort_button", o.abort_button, true);
-  r.Line("led", o.led, false);
-  r.Line("lamp", o.lamp, false);
+  ReadLine(r, "start_button", o.start_button, true);
+  ReadLine(r, "abort_button", o.abort_button, true);
+  ReadLine(r, "led", o.led, false);
+  ReadLine(r, "lamp", o.lamp, false);
   r.String("bias", o.bias, {"pull_up", "pull_down", "disable", "as_is"});
   r.Number("debounce_ms", o.debounce_ms, 0.0, 1000.0);
   if (auto done = r.Finish(); !done) return std::unexpected(done.error());
@@ -205,7 +137,7 @@ Expected<OperatorOptions> ParseOperatorOptions(const config::Section& s) {
 Expected<Recipe> ParseRecipe(const config::Section& s, std::string name) {
   Recipe o;
   o.name = std::move(name);
-  Reader r(s);
+  config::Reader r(s);
   r.Optional("stops", o.stops, [&](std::string_view k, int& v) { r.Integer(k, v, 1, 3600); });
   r.Optional("step_deg", o.step_deg,
              [&](std::string_view k, double& v) { r.Number(k, v, 0.01, 360.0); });
@@ -296,12 +228,6 @@ toml::table* EnsureTable(toml::table& root, std::initializer_list<std::string_vi
 }
 
 }  // namespace
-
-std::string PanelLine::Describe() const {
-  std::string s = offset >= 0 ? std::to_string(offset) : "\"" + name + "\"";
-  if (active_low) s += " (active low)";
-  return s;
-}
 
 Expected<StationConfig> ParseStationConfig(const config::Document& document) {
   StationConfig cfg;

@@ -1,5 +1,5 @@
 // The whole station's configuration: [scan], [station], [daemon], [operator], [recipes.*] plus
-// each module's own section ([calibration]: docs/calibration.md). Every key, its unit, default and
+// each module's own section ([calibration]: README.md, "Calibration"). Every key, unit, default and
 // range: README.md, "Configuration reference".
 #pragma once
 
@@ -76,14 +76,7 @@ struct DaemonOptions {
 };
 
 // One GPIO line of the operator panel: an offset or a line name on [operator] chip.
-struct PanelLine {
-  int offset = -1;
-  std::string name;
-  bool active_low = false;
-
-  bool present() const { return offset >= 0 || !name.empty(); }
-  std::string Describe() const;
-};
+using PanelLine = turntable::GpioLineSpec;
 
 // [operator]: the start button, an optional abort button, the status LED, an optional lamp
 // relay. No line configured: no panel.
@@ -133,7 +126,7 @@ struct StationConfig {
   capture::QualityOptions quality;  // [quality]: the per-stop gates (capture/quality.h)
   reconstruct::ReconstructOptions reconstruct;
   // [calibration]: the calibration scans use (`file`, resolved against the config file's folder;
-  // empty: none), the board and the gates of `revolve calibrate` (docs/calibration.md).
+  // empty: none), the board and the gates of `revolve calibrate` (README.md, "Calibration").
   calibrate::CalibrationOptions calibration;
 };
 

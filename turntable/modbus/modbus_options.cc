@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "config/reader.h"
+#include "turntable/drive_options.h"
 #include "turntable/modbus/profile.h"
 #include "turntable/modbus/profile_library.h"
 
@@ -14,70 +16,11 @@ namespace {
 constexpr int kStandardBauds[] = {1200,  2400,   4800,   9600,   19200,  38400,
                                   57600, 115200, 230400, 460800, 500000, 921600};
 
-// Reads `key` as a number in [min, max] into `out`; false (with `error` set) on failure.
-class Reader {
- public:
-  explicit Reader(const config::Section& section) : section_(section) {}
-
-  void Number(std::string_view key, double& out, double min, double max) {
-    if (error_) return;
-    Expected<double> v = section_.Number(key, out, min, max);
-    if (!v) {
-      error_ = v.error();
-      return;
-    }
-    out = *v;
-  }
-  void Positive(std::string_view key, double& out, double max) {
-    Number(key, out, 0.0, max);
-    if (!error_ && out <= 0.0) {
-      error_ = section_.BadValue(key, fmt::format("must be greater than 0 (and at most {})", max));
-    }
-  }
-  template <class Int>
-  void Integer(std::string_view key, Int& out, std::int64_t min, std::int64_t max) {
-    if (error_) return;
-    Expected<std::int64_t> v = section_.Integer(key, out, min, max);
-    if (!v) {
-      error_ = v.error();
-      return;
-    }
-    out = static_cast<Int>(*v);
-  }
-  void Boolean(std::string_view key, bool& out) {
-    if (error_) return;
-    Expected<bool> v = section_.Boolean(key, out);
-    if (!v) {
-      error_ = v.error();
-      return;
-    }
-    out = *v;
-  }
-  void String(std::string_view key, std::string& out,
-              std::initializer_list<std::string_view> allowed = {}) {
-    if (error_) return;
-    Expected<std::string> v = section_.String(key, out, allowed);
-    if (!v) {
-      error_ = v.error();
-      return;
-    }
-    out = *v;
-  }
-  void Fail(Error error) {
-    if (!error_) error_ = std::move(error);
-  }
-  const std::optional<Error>& error() const { return error_; }
-
- private:
-  const config::Section& section_;
-  std::optional<Error> error_;
-};
-
 }  // namespace
 
 Expected<ModbusOptions> ParseModbusOptions(const config::Section& section) {
   ModbusOptions o;
-  Reader r(section);
+  config::Reader r(section);
   std::string transport = "rtu";
   r.String("transport", transport, {"rtu", "tcp"});
   o.transport =
@@ -127,12 +70,7 @@ Expected<ModbusOptions> ParseModbusOptions(const config::Section& section) {
     o.config_dir = std::filesystem::path(section.origin()).parent_path();
   }
   r.Integer("steps_per_rev", o.steps_per_rev, 0, 100'000'000);
-  r.Positive("gear_ratio", o.gear_ratio, 1000.0);
-  std::string direction = "forward";
-  r.String("direction", direction, {"forward", "reverse"});
-  o.reverse = direction == "reverse";
-  r.Positive("speed_deg_per_s", o.speed_deg_per_s, 3600.0);
-  r.Positive("acceleration_deg_per_s2", o.acceleration_deg_per_s2, 100000.0);
+  ReadDriveMotion(r, o);
   r.Number("tolerance_deg", o.tolerance_deg, 0.0, 5.0);
   r.Number("stall_timeout_ms", o.stall_timeout_ms, 10.0, 600000.0);
   r.Integer("in_position_polls", o.in_position_polls, 1, 10);
