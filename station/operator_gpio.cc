@@ -1,7 +1,7 @@
 // OperatorLines over libgpiod 1.6 (gpiod.hpp), when this build has it.
 #include <poll.h>
 
-#include <cerrno>
+#include <string>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -10,6 +10,8 @@
 
 #ifdef REVOLVE_HAVE_PANEL_GPIO
 #include <gpiod.hpp>
+
+#include "turntable/gpio/libgpiod_line.h"
 #endif
 
 namespace revolve::station {
@@ -17,93 +19,35 @@ namespace revolve::station {
 #ifdef REVOLVE_HAVE_PANEL_GPIO
 namespace {
 
-constexpr char kConsumer[] = "revolved";
+using turntable::gpio::GpiodError;
 
-Error FromSystemError(const std::system_error& e, std::string_view what) {
-  const int code = e.code().value();
-  if (code == EBUSY) {
-    return Error{
-        ErrorCode::kBusy,
-        fmt::format("{}: {} (used by another program, e.g. a running gpioset)", what, e.what())};
-  }
-  if (code == ENOENT || code == ENODEV) {
-    return Error{ErrorCode::kNotFound,
-                 fmt::format("{}: {} (see `gpiodetect` and `gpioinfo`)", what, e.what())};
-  }
-  if (code == EACCES || code == EPERM) {
-    return Error{
-        ErrorCode::kIo,
-        fmt::format("{}: {} (permission: the gpio group and its udev rule)", what, e.what())};
-  }
-  return Error{ErrorCode::kNoDevice, fmt::format("{}: {}", what, e.what())};
-}
+const std::string kConsumer = "revolved";
 
 class LibgpiodPanelLines final : public OperatorLines {
  public:
   explicit LibgpiodPanelLines(const OperatorOptions& options) : options_(options) {}
 
   Expected<void> Open() {
-    try {
-      chip_.open(options_.chip, gpiod::chip::OPEN_LOOKUP);
-    } catch (const std::system_error& e) {
-      return std::unexpected(FromSystemError(e, fmt::format("GPIO chip {}", options_.chip)));
-    } catch (const std::exception& e) {
-      return MakeError(ErrorCode::kNotFound,
-                       fmt::format("GPIO chip {}: {}", options_.chip, e.what()));
-    }
-    auto find = [this](const PanelLine& spec, std::string_view role) -> Expected<gpiod::line> {
-      try {
-        gpiod::line line = spec.offset >= 0 ? chip_.get_line(static_cast<unsigned>(spec.offset))
-                                            : chip_.find_line(spec.name);
-        if (!line) {
-          return MakeError(ErrorCode::kNotFound, fmt::format("{} line {} not found on {}", role,
-                                                             spec.Describe(), options_.chip));
-        }
-        return line;
-      } catch (const std::system_error& e) {
-        return std::unexpected(
-            FromSystemError(e, fmt::format("{} line {}", role, spec.Describe())));
-      } catch (const std::exception& e) {
-        return MakeError(ErrorCode::kNotFound,
-                         fmt::format("{} line {}: {}", role, spec.Describe(), e.what()));
-      }
-    };
+    Expected<gpiod::chip> chip = turntable::gpio::OpenGpiodChip(options_.chip);
+    if (!chip) return std::unexpected(chip.error());
+    chip_ = std::move(*chip);
     auto input = [&](const PanelLine& spec, std::string_view role,
                      std::optional<gpiod::line>& out) -> Expected<void> {
       if (!spec.present()) return {};
-      Expected<gpiod::line> line = find(spec, role);
+      Expected<gpiod::line> line = turntable::gpio::RequestGpiodInput(
+          chip_, options_.chip, spec, role, options_.bias, kConsumer);
       if (!line) return std::unexpected(line.error());
-      try {
-        gpiod::line_request request{kConsumer, gpiod::line_request::EVENT_BOTH_EDGES, {}};
-        if (spec.active_low) request.flags |= gpiod::line_request::FLAG_ACTIVE_LOW;
-        if (options_.bias == "pull_up") request.flags |= gpiod::line_request::FLAG_BIAS_PULL_UP;
-        if (options_.bias == "pull_down") {
-          request.flags |= gpiod::line_request::FLAG_BIAS_PULL_DOWN;
-        }
-        if (options_.bias == "disable") request.flags |= gpiod::line_request::FLAG_BIAS_DISABLE;
-        line->request(request);
-        out = *line;
-        return {};
-      } catch (const std::system_error& e) {
-        return std::unexpected(
-            FromSystemError(e, fmt::format("requesting {} line {}", role, spec.Describe())));
-      }
+      out = *line;
+      return {};
     };
     auto output = [&](const PanelLine& spec, std::string_view role,
                       std::optional<gpiod::line>& out) -> Expected<void> {
       if (!spec.present()) return {};
-      Expected<gpiod::line> line = find(spec, role);
+      Expected<gpiod::line> line =
+          turntable::gpio::RequestGpiodOutput(chip_, options_.chip, spec, role, kConsumer);
       if (!line) return std::unexpected(line.error());
-      try {
-        gpiod::line_request request{kConsumer, gpiod::line_request::DIRECTION_OUTPUT, {}};
-        if (spec.active_low) request.flags |= gpiod::line_request::FLAG_ACTIVE_LOW;
-        line->request(request, 0);
-        out = *line;
-        return {};
-      } catch (const std::system_error& e) {
-        return std::unexpected(
-            FromSystemError(e, fmt::format("requesting {} line {}", role, spec.Describe())));
-      }
+      out = *line;
+      return {};
     };
     if (auto r = input(options_.start_button, "start button", start_); !r) return r;
     if (auto r = input(options_.abort_button, "abort button", abort_); !r) return r;
@@ -140,7 +84,7 @@ class LibgpiodPanelLines final : public OperatorLines {
                                      event.timestamp});
         }
       } catch (const std::system_error& e) {
-        return std::unexpected(FromSystemError(e, "reading button events"));
+        return std::unexpected(GpiodError(e, "reading button events"));
       }
     }
     return edges;
@@ -152,7 +96,7 @@ class LibgpiodPanelLines final : public OperatorLines {
     try {
       return line->get_value() != 0;
     } catch (const std::system_error& e) {
-      return std::unexpected(FromSystemError(e, "reading a button"));
+      return std::unexpected(GpiodError(e, "reading a button"));
     }
   }
 
@@ -164,7 +108,7 @@ class LibgpiodPanelLines final : public OperatorLines {
       return {};
     } catch (const std::system_error& e) {
       return std::unexpected(
-          FromSystemError(e, output == PanelOutput::kLed ? "setting the LED" : "setting the lamp"));
+          GpiodError(e, output == PanelOutput::kLed ? "setting the LED" : "setting the lamp"));
     }
   }
 

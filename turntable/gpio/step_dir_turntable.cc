@@ -72,16 +72,16 @@ StepDirTurntable::StepDirTurntable(GpioOptions options, std::unique_ptr<StepDirL
       clock_(std::move(clock)),
       plate_(std::move(plate)),
       disable_at_end_(disable_at_end),
-      last_activity_(Clock::now()) {
-  if (options_.idle_disable_s > 0.0 && lines_->HasEnable()) {
-    idle_thread_ = std::jthread([this](std::stop_token stop) { IdleWatch(stop); });
-  }
-}
+      idle_(
+          lines_->HasEnable() ? options_.idle_disable_s : 0.0, op_mutex_,
+          [this] {
+            std::lock_guard lock(mutex_);
+            return enabled_;
+          },
+          [this] { PowerDownIdle(); }) {}
 
 StepDirTurntable::~StepDirTurntable() {
-  idle_thread_.request_stop();
-  idle_wake_.notify_all();
-  if (idle_thread_.joinable()) idle_thread_.join();
+  idle_.Shutdown();
   abort_.store(true);
   std::lock_guard op(op_mutex_);
   if (disable_at_end_) (void)lines_->Set(Line::kEnable, false);
@@ -98,14 +98,6 @@ std::string StepDirTurntable::Describe() const {
 double StepDirTurntable::AngleOf(std::int64_t steps) const {
   return (options_.reverse ? -1.0 : 1.0) * static_cast<double>(steps) /
          options_.StepsPerPlateRev() * 360.0;
-}
-
-void StepDirTurntable::Touch() {
-  {
-    std::lock_guard lock(mutex_);
-    last_activity_ = Clock::now();
-  }
-  idle_wake_.notify_all();
 }
 
 Expected<void> StepDirTurntable::EnsureEnabled() {
@@ -256,11 +248,9 @@ Expected<void> StepDirTurntable::HomeWithSwitch(Clock::time_point deadline) {
 
 Expected<void> StepDirTurntable::Home(Clock::time_point deadline) {
   std::unique_lock op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) {
-    return MakeError(ErrorCode::kBusy, "the turntable is already moving (another call runs)");
-  }
+  if (!op.owns_lock()) return std::unexpected(BusyError());
   abort_.store(false);
-  Touch();
+  idle_.Touch();
   {
     std::lock_guard lock(mutex_);
     explicitly_disabled_ = false;
@@ -284,21 +274,18 @@ Expected<void> StepDirTurntable::Home(Clock::time_point deadline) {
     target_steps_.store(0);
   }
   if (plate_) plate_->angle_deg.store(AngleOf(position_steps_.load()));
-  std::lock_guard lock(mutex_);
-  homed_ = true;
-  last_activity_ = Clock::now();
+  {
+    std::lock_guard lock(mutex_);
+    homed_ = true;
+  }
+  idle_.Touch();
   return {};
 }
 
 Expected<void> StepDirTurntable::MoveTo(double angle_deg, Clock::time_point deadline) {
   std::unique_lock op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) {
-    return MakeError(ErrorCode::kBusy, "the turntable is already moving (another call runs)");
-  }
-  if (!std::isfinite(angle_deg) || std::fabs(angle_deg) > 1e6) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("target angle {} deg is not a usable number", angle_deg));
-  }
+  if (!op.owns_lock()) return std::unexpected(BusyError());
+  if (Expected<void> usable = CheckTargetAngle(angle_deg); !usable) return usable;
   {
     std::lock_guard lock(mutex_);
     if (explicitly_disabled_) {
@@ -307,13 +294,13 @@ Expected<void> StepDirTurntable::MoveTo(double angle_deg, Clock::time_point dead
     }
   }
   abort_.store(false);
-  Touch();
+  idle_.Touch();
   const auto target = static_cast<std::int64_t>(std::llround(
       (options_.reverse ? -1.0 : 1.0) * angle_deg / 360.0 * options_.StepsPerPlateRev()));
   target_steps_.store(target);
   const EmitResult r =
       Emit(target - position_steps_.load(), options_.speed_deg_per_s, deadline, false);
-  Touch();
+  idle_.Touch();
   auto context = [angle_deg](ErrorCode code, std::string message) {
     return std::unexpected(WithContext(Error{code, std::move(message)},
                                        fmt::format("moving to {:.3f} deg", angle_deg)));
@@ -362,34 +349,15 @@ Expected<void> StepDirTurntable::Disable() {
   return {};
 }
 
-void StepDirTurntable::IdleWatch(std::stop_token stop) {
-  const auto idle = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(options_.idle_disable_s));
-  std::unique_lock lock(mutex_);
-  while (!stop.stop_requested()) {
-    if (!enabled_) {
-      idle_wake_.wait_for(lock, stop, std::chrono::milliseconds(200), [] { return false; });
-      continue;
-    }
-    const Clock::time_point due = last_activity_ + idle;
-    if (Clock::now() < due) {
-      idle_wake_.wait_until(lock, stop, due, [] { return false; });
-      continue;
-    }
-    lock.unlock();
-    std::unique_lock op(op_mutex_, std::try_to_lock);
-    lock.lock();
-    if (op.owns_lock() && enabled_ && Clock::now() >= last_activity_ + idle) {
-      Logger("turntable")
-          ->info("idle for {} s: releasing ENABLE (the next move asserts it)",
-                 options_.idle_disable_s);
-      if (Expected<void> off = lines_->Set(Line::kEnable, false); !off) {
-        Logger("turntable")->warn("idle power-down failed: {}", off.error().message);
-      }
-      enabled_ = false;
-    }
-    last_activity_ = std::max(last_activity_, Clock::now() - idle + std::chrono::milliseconds(200));
+void StepDirTurntable::PowerDownIdle() {
+  std::lock_guard lock(mutex_);
+  if (!enabled_) return;
+  Logger("turntable")
+      ->info("idle for {} s: releasing ENABLE (the next move asserts it)", options_.idle_disable_s);
+  if (Expected<void> off = lines_->Set(Line::kEnable, false); !off) {
+    Logger("turntable")->warn("idle power-down failed: {}", off.error().message);
   }
+  enabled_ = false;
 }
 
 }  // namespace revolve::turntable::gpio

@@ -20,13 +20,11 @@
 #pragma once
 
 #include <atomic>
-#include <condition_variable>
 #include <memory>
 #include <mutex>
-#include <stop_token>
-#include <thread>
 
 #include "base/sim_plate.h"
+#include "turntable/drive_support.h"
 #include "turntable/gpio/gpio_options.h"
 #include "turntable/gpio/step_dir_lines.h"
 #include "turntable/turntable.h"
@@ -67,8 +65,8 @@ class StepDirTurntable final : public Turntable {
   Expected<void> EnsureEnabled();
   Expected<void> HomeWithSwitch(Clock::time_point deadline);
   double AngleOf(std::int64_t steps) const;
-  void Touch();
-  void IdleWatch(std::stop_token stop);
+  // Releases ENABLE after idle_disable_s without motion (IdlePowerDown's callback).
+  void PowerDownIdle();
 
   const GpioOptions options_;
   const std::unique_ptr<StepDirLines> lines_;
@@ -89,9 +87,8 @@ class StepDirTurntable final : public Turntable {
   bool homed_ = false;
   bool dir_forward_ = true;
   bool dir_known_ = false;
-  Clock::time_point last_activity_;
-  std::condition_variable_any idle_wake_;
-  std::jthread idle_thread_;
+
+  IdlePowerDown idle_;  // last: its thread uses the fields above
 };
 
 }  // namespace revolve::turntable::gpio

@@ -102,16 +102,16 @@ ModbusTurntable::ModbusTurntable(ModbusOptions options, DriveProfile profile,
       tolerance_counts_(static_cast<std::int64_t>(
           std::floor(options_.tolerance_deg / 360.0 * kinematics_.CountsPerPlateRev()))),
       transport_(std::move(transport)),
-      last_activity_(Clock::now()) {
-  if (options_.idle_disable_s > 0.0 && profile_.FindCommand("disable") != nullptr) {
-    idle_thread_ = std::jthread([this](std::stop_token stop) { IdleWatch(stop); });
-  }
-}
+      idle_(
+          profile_.FindCommand("disable") != nullptr ? options_.idle_disable_s : 0.0, op_mutex_,
+          [this] {
+            std::lock_guard lock(mutex_);
+            return enabled_ && !busy_;
+          },
+          [this] { PowerDownIdle(); }) {}
 
 ModbusTurntable::~ModbusTurntable() {
-  idle_thread_.request_stop();
-  idle_wake_.notify_all();
-  if (idle_thread_.joinable()) idle_thread_.join();
+  idle_.Shutdown();
   Stop();
   if (disable_at_end_) {
     if (Expected<void> off = RunCommand("disable", params_, true); !off) {
@@ -130,14 +130,6 @@ std::string ModbusTurntable::Describe() const {
 double ModbusTurntable::AngleOf(std::int64_t counts) const {
   std::lock_guard lock(mutex_);
   return kinematics_.DegFromCounts(static_cast<double>(counts - offset_counts_));
-}
-
-void ModbusTurntable::Touch() {
-  {
-    std::lock_guard lock(mutex_);
-    last_activity_ = Clock::now();
-  }
-  idle_wake_.notify_all();
 }
 
 Expected<std::vector<std::uint16_t>> ModbusTurntable::Transact(const Request& request) {
@@ -272,6 +264,25 @@ Expected<void> ModbusTurntable::EnsureEnabled() {
   return {};
 }
 
+Expected<ModbusTurntable::DriveStatus> ModbusTurntable::PollStatus(std::string_view aborted) {
+  if (abort_.load()) {
+    StopMotor();
+    return MakeError(ErrorCode::kAborted, std::string(aborted));
+  }
+  Expected<DriveStatus> status = ReadStatus();
+  if (!status) {
+    StopMotor();
+    return std::unexpected(status.error());
+  }
+  Publish(*status);
+  if (status->alarm) {
+    Error error = AlarmError(*status);
+    StopMotor();
+    return std::unexpected(error);
+  }
+  return status;
+}
+
 Expected<void> ModbusTurntable::WaitForMove(std::int64_t target_counts,
                                             Clock::time_point deadline) {
   const auto stall_window = FromMs(options_.stall_timeout_ms);
@@ -279,23 +290,11 @@ Expected<void> ModbusTurntable::WaitForMove(std::int64_t target_counts,
   Clock::time_point progress_time = Clock::now();
   bool first = true;
   int in_position_polls = 0;
+  constexpr std::string_view aborted = "the move was stopped on request";
   for (;;) {
-    if (abort_.load()) {
-      StopMotor();
-      return MakeError(ErrorCode::kAborted, "the move was stopped on request");
-    }
-    Expected<DriveStatus> status = ReadStatus();
+    Expected<DriveStatus> status = PollStatus(aborted);
+    if (!status) return std::unexpected(status.error());
     const Clock::time_point now = Clock::now();
-    if (!status) {
-      StopMotor();
-      return std::unexpected(status.error());
-    }
-    Publish(*status);
-    if (status->alarm) {
-      Error error = AlarmError(*status);
-      StopMotor();
-      return std::unexpected(error);
-    }
     const std::int64_t error_counts = std::llabs(status->position_counts - target_counts);
     const bool at_target = error_counts <= tolerance_counts_;
     if (!status->moving && status->in_position && at_target) {
@@ -340,7 +339,7 @@ Expected<void> ModbusTurntable::WaitForMove(std::int64_t target_counts,
     }
     if (!Pause(std::min(now + FromMs(options_.poll_ms), deadline))) {
       StopMotor();
-      return MakeError(ErrorCode::kAborted, "the move was stopped on request");
+      return MakeError(ErrorCode::kAborted, std::string(aborted));
     }
   }
 }
@@ -348,23 +347,11 @@ Expected<void> ModbusTurntable::WaitForMove(std::int64_t target_counts,
 Expected<void> ModbusTurntable::WaitForHome(Clock::time_point deadline) {
   const Clock::time_point start = Clock::now();
   bool seen_moving = false;
+  constexpr std::string_view aborted = "homing was stopped on request";
   for (;;) {
-    if (abort_.load()) {
-      StopMotor();
-      return MakeError(ErrorCode::kAborted, "homing was stopped on request");
-    }
-    Expected<DriveStatus> status = ReadStatus();
+    Expected<DriveStatus> status = PollStatus(aborted);
+    if (!status) return std::unexpected(status.error());
     const Clock::time_point now = Clock::now();
-    if (!status) {
-      StopMotor();
-      return std::unexpected(status.error());
-    }
-    Publish(*status);
-    if (status->alarm) {
-      Error error = AlarmError(*status);
-      StopMotor();
-      return std::unexpected(error);
-    }
     seen_moving = seen_moving || status->moving;
     const bool done = !status->moving &&
                       (status->homed ? *status->homed
@@ -385,19 +372,17 @@ Expected<void> ModbusTurntable::WaitForHome(Clock::time_point deadline) {
     }
     if (!Pause(std::min(now + FromMs(options_.poll_ms), deadline))) {
       StopMotor();
-      return MakeError(ErrorCode::kAborted, "homing was stopped on request");
+      return MakeError(ErrorCode::kAborted, std::string(aborted));
     }
   }
 }
 
 Expected<void> ModbusTurntable::Home(Clock::time_point deadline) {
   std::unique_lock op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) {
-    return MakeError(ErrorCode::kBusy, "the turntable is already moving (another call runs)");
-  }
+  if (!op.owns_lock()) return std::unexpected(BusyError());
   BusyScope busy(mutex_, busy_);
   abort_.store(false);
-  Touch();
+  idle_.Touch();
   auto fail = [](Error error) { return std::unexpected(WithContext(std::move(error), "homing")); };
   if (Expected<void> reset = RunCommand("reset_alarm", params_, true); !reset) {
     return fail(reset.error());
@@ -445,21 +430,18 @@ Expected<void> ModbusTurntable::Home(Clock::time_point deadline) {
     std::lock_guard lock(mutex_);
     offset_counts_ = target;
   }
-  std::lock_guard lock(mutex_);
-  homed_ = true;
-  last_activity_ = Clock::now();
+  {
+    std::lock_guard lock(mutex_);
+    homed_ = true;
+  }
+  idle_.Touch();
   return {};
 }
 
 Expected<void> ModbusTurntable::MoveTo(double angle_deg, Clock::time_point deadline) {
   std::unique_lock op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) {
-    return MakeError(ErrorCode::kBusy, "the turntable is already moving (another call runs)");
-  }
-  if (!std::isfinite(angle_deg) || std::fabs(angle_deg) > 1e6) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("target angle {} deg is not a usable number", angle_deg));
-  }
+  if (!op.owns_lock()) return std::unexpected(BusyError());
+  if (Expected<void> usable = CheckTargetAngle(angle_deg); !usable) return usable;
   std::int64_t target = 0;
   {
     std::lock_guard lock(mutex_);
@@ -476,7 +458,7 @@ Expected<void> ModbusTurntable::MoveTo(double angle_deg, Clock::time_point deadl
   }
   BusyScope busy(mutex_, busy_);
   abort_.store(false);
-  Touch();
+  idle_.Touch();
   auto context = [angle_deg](Error error) {
     return std::unexpected(
         WithContext(std::move(error), fmt::format("moving to {:.3f} deg", angle_deg)));
@@ -504,7 +486,7 @@ Expected<void> ModbusTurntable::MoveTo(double angle_deg, Clock::time_point deadl
     commanded_counts_ = target;
   }
   Expected<void> moved = WaitForMove(target, deadline);
-  Touch();
+  idle_.Touch();
   if (!moved) return context(moved.error());
   return {};
 }
@@ -545,36 +527,14 @@ Expected<void> ModbusTurntable::Disable() {
   return {};
 }
 
-void ModbusTurntable::IdleWatch(std::stop_token stop) {
-  const auto idle = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(options_.idle_disable_s));
-  std::unique_lock lock(mutex_);
-  while (!stop.stop_requested()) {
-    if (!enabled_ || busy_) {
-      idle_wake_.wait_for(lock, stop, std::chrono::milliseconds(200), [] { return false; });
-      continue;
-    }
-    const Clock::time_point due = last_activity_ + idle;
-    if (Clock::now() < due) {
-      idle_wake_.wait_until(lock, stop, due, [] { return false; });
-      continue;
-    }
-    lock.unlock();
-    std::unique_lock op(op_mutex_, std::try_to_lock);
-    if (op.owns_lock()) {
-      Logger("turntable")
-          ->info("idle for {} s: powering the motor down (the next move powers it up)",
-                 options_.idle_disable_s);
-      Expected<void> off = RunCommand("disable", params_, false);
-      if (!off) Logger("turntable")->warn("idle power-down failed: {}", off.error().message);
-      lock.lock();
-      enabled_ = false;
-      last_activity_ = Clock::now();
-      op.unlock();
-    } else {
-      lock.lock();
-    }
-  }
+void ModbusTurntable::PowerDownIdle() {
+  Logger("turntable")
+      ->info("idle for {} s: powering the motor down (the next move powers it up)",
+             options_.idle_disable_s);
+  Expected<void> off = RunCommand("disable", params_, false);
+  if (!off) Logger("turntable")->warn("idle power-down failed: {}", off.error().message);
+  std::lock_guard lock(mutex_);
+  enabled_ = false;
 }
 
 }  // namespace revolve::turntable::modbus

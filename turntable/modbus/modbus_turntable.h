@@ -44,12 +44,11 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <stop_token>
 #include <string>
-#include <thread>
 
 #include "base/error.h"
 #include "base/sim_plate.h"
+#include "turntable/drive_support.h"
 #include "turntable/modbus/modbus_options.h"
 #include "turntable/modbus/profile.h"
 #include "turntable/modbus/transport.h"
@@ -118,6 +117,9 @@ class ModbusTurntable final : public Turntable {
   // Runs a profile command; a missing optional command is a no-op when `optional`.
   Expected<void> RunCommand(std::string_view name, const Variables& variables, bool optional);
   Expected<DriveStatus> ReadStatus();
+  // One poll of a wait: the status, published. Stops the motor and fails with aborted (message
+  // `aborted`) after Stop(), with the read's error, or with alarm.
+  Expected<DriveStatus> PollStatus(std::string_view aborted);
   // Polls until the move to `target_counts` completes or fails (see the header comment).
   Expected<void> WaitForMove(std::int64_t target_counts, Clock::time_point deadline);
   Expected<void> WaitForHome(Clock::time_point deadline);
@@ -128,8 +130,8 @@ class ModbusTurntable final : public Turntable {
   bool Pause(Clock::time_point until);
   void Publish(const DriveStatus& status);
   double AngleOf(std::int64_t counts) const;
-  void Touch();
-  void IdleWatch(std::stop_token stop);
+  // Runs "disable" after idle_disable_s without motion (IdlePowerDown's callback).
+  void PowerDownIdle();
   Error AlarmError(const DriveStatus& status);
 
   const ModbusOptions options_;
@@ -158,9 +160,8 @@ class ModbusTurntable final : public Turntable {
   bool busy_ = false;
   std::optional<Error> latched_alarm_;
   std::optional<std::int64_t> alarm_code_;
-  Clock::time_point last_activity_;
-  std::condition_variable_any idle_wake_;
-  std::jthread idle_thread_;  // last: stopped first
+
+  IdlePowerDown idle_;  // last: its thread uses the fields above
 };
 
 }  // namespace revolve::turntable::modbus
