@@ -25,6 +25,7 @@
 #include "station/devices.h"
 #include "station/scan_command.h"
 #include "station/station_config.h"
+#include "station/timing.h"
 
 namespace revolve::station {
 namespace {
@@ -42,21 +43,6 @@ using Result = std::expected<T, Failure>;
 
 std::unexpected<Failure> Fail(int code, std::string message) {
   return std::unexpected(Failure{code, std::move(message)});
-}
-
-Clock::time_point DeadlineIn(double seconds) {
-  return Clock::now() +
-         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-}
-
-// Sleeps `ms`, returning early when a stop is requested.
-void SleepFor(std::stop_token stop, double ms) {
-  if (ms <= 0.0) return;
-  std::mutex mutex;
-  std::condition_variable_any wake;
-  std::unique_lock lock(mutex);
-  (void)wake.wait_for(lock, stop, std::chrono::duration<double, std::milli>(ms),
-                      [] { return false; });
 }
 
 // One line of input; false at the end of the input or when a stop is requested. On a terminal
@@ -280,6 +266,16 @@ class Calibrator {
     return frame->image;
   }
 
+  // After the prompt just printed: waits for Enter (or the end of the input), then Turn()s the
+  // board through `angles`. aborted when a stop is requested meanwhile.
+  Result<std::vector<cal::StopDetection>> TurnAfterEnter(const std::vector<double>& angles) {
+    out_.flush();
+    std::string line;
+    if (!ReadLine(in_, stop_, &line)) fmt::print(out_, "\n");
+    if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
+    return Turn(angles, board_);
+  }
+
   // Homes, then for each angle: move, settle, capture, detect; progress per stop.
   Result<std::vector<cal::StopDetection>> Turn(const std::vector<double>& angles,
                                                const cal::Board& board) {
@@ -446,11 +442,7 @@ class Calibrator {
                "it up facing the camera (a camera nearly level), fixed so that it cannot slip; "
                "the station turns it through {} stops of {:g} deg. Press Enter to start: ",
                board_.Describe(), angles.size(), config_.scan.step_deg);
-    out_.flush();
-    std::string line;
-    if (!ReadLine(in_, stop_, &line)) fmt::print(out_, "\n");
-    if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
-    auto stops = Turn(angles, board_);
+    auto stops = TurnAfterEnter(angles);
     if (!stops) return std::unexpected(stops.error());
     auto axis = cal::CalibrateAxis(*stops, camera, board_, config_.calibration.axis);
     if (!axis) return Fail(kExitFailed, axis.error().message);
@@ -509,11 +501,7 @@ class Calibrator {
                "check {} (made {}): put the board ({}) on the plate, anywhere, as for the "
                "calibration; the station looks at it at {} stops. Press Enter to start: ",
                file.string(), calibration->created, board_.Describe(), angles.size());
-    out_.flush();
-    std::string line;
-    if (!ReadLine(in_, stop_, &line)) fmt::print(out_, "\n");
-    if (stop_.stop_requested()) return Fail(kExitAborted, "aborted");
-    auto stops = Turn(angles, board_);
+    auto stops = TurnAfterEnter(angles);
     if (!stops) return std::unexpected(stops.error());
     auto result = cal::CheckCalibration(*calibration, *stops, options);
     if (!result) return Fail(kExitNoData, result.error().message);

@@ -19,16 +19,13 @@
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/reconstructor.h"
 #include "station/scan_command.h"
+#include "station/timing.h"
 
 namespace revolve::station {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 namespace rc = revolve::reconstruct;
-
-double MsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
