@@ -1,12 +1,10 @@
 #include "base/rig.h"
 
 #include <cmath>
-#include <numbers>
+
+#include "base/angles.h"
 
 namespace revolve {
-namespace {
-double Radians(double deg) { return deg * std::numbers::pi / 180.0; }
-}  // namespace
 
 Eigen::Matrix3d Intrinsics::K() const {
   Eigen::Matrix3d k;

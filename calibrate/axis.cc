@@ -10,19 +10,10 @@
 #include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
 
+#include "base/angles.h"
+
 namespace revolve::calibrate {
 namespace {
-
-double Radians(double deg) { return deg * std::numbers::pi / 180.0; }
-double Degrees(double rad) { return rad * 180.0 / std::numbers::pi; }
-
-// Angle difference wrapped to (-180, 180].
-double WrapDeg(double deg) {
-  double w = std::fmod(deg, 360.0);
-  if (w <= -180.0) w += 360.0;
-  if (w > 180.0) w -= 360.0;
-  return w;
-}
 
 Eigen::Matrix3d Rz(double angle_rad) {
   return Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();

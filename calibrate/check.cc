@@ -6,11 +6,9 @@
 
 #include <fmt/format.h>
 
-namespace revolve::calibrate {
-namespace {
-double Degrees(double rad) { return rad * 180.0 / std::numbers::pi; }
-}  // namespace
+#include "base/angles.h"
 
+namespace revolve::calibrate {
 std::string CheckResult::Summary(const CheckOptions& options) const {
   std::string out;
   out += fmt::format("stops with the board: {}\n", stops_used);

@@ -8,10 +8,10 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/angles.h"
+
 namespace revolve::calibrate {
 namespace {
-
-double Degrees(double rad) { return rad * 180.0 / std::numbers::pi; }
 
 std::string JoinProblems(const std::vector<ViewReport>& views) {
   std::string out;

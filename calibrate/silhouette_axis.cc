@@ -10,17 +10,10 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "base/angles.h"
+
 namespace revolve::calibrate {
 namespace {
-
-double Degrees(double rad) { return rad * 180.0 / std::numbers::pi; }
-
-double WrapDeg(double deg) {
-  double w = std::fmod(deg, 360.0);
-  if (w <= -180.0) w += 360.0;
-  if (w > 180.0) w -= 360.0;
-  return w;
-}
 
 // Left and right edges of the silhouette in every row, in continuous pixel coordinates (the
 // outer boundaries of the first and last object pixels: column - 0.5 and column + 0.5). NaN for

@@ -7,14 +7,15 @@
 
 #include <Eigen/Geometry>
 
+#include "base/angles.h"
 #include "base/rig.h"
 #include "calibrate/board.h"
 #include "calibrate/camera_model.h"
 
 namespace revolve::calibrate::sim {
 
-inline double Radians(double deg) { return deg * std::numbers::pi / 180.0; }
-inline double Degrees(double rad) { return rad * 180.0 / std::numbers::pi; }
+using revolve::Degrees;
+using revolve::Radians;
 
 inline Eigen::Matrix3d Rx(double deg) {
   return Eigen::AngleAxisd(Radians(deg), Eigen::Vector3d::UnitX()).toRotationMatrix();
