@@ -1,6 +1,5 @@
 // The replay camera: patterns, natural order, serving by plate angle or in sequence, and a full
 // scan of a simulated scan's saved frames through the station, matching the original scan.
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -13,28 +12,13 @@
 #include "capture/replay/replay_camera.h"
 #include "capture/synthetic/synthetic_camera.h"
 #include "station/scan_session.h"
+#include "tests/support/test_files.h"
 
 namespace revolve::capture {
 namespace {
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("revolve_replay_" + std::to_string(::getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 TEST(ReplayPattern, ExpandsAngleAndIndexWithPadding) {
   EXPECT_EQ(ExpandReplayPattern("bw_shoe{angle}.tif", 350, 35), "bw_shoe350.tif");
@@ -69,7 +53,7 @@ void WriteNumbered(const fs::path& dir, const std::string& pattern, int count, d
 int Number(const Frame& frame) { return frame.image.at<cv::Vec3b>(0, 0)[0]; }
 
 TEST(ReplayCamera, ServesTheImageForThePlatesAngle) {
-  TempDir dir;
+  test_support::TempDir dir("revolve_replay");
   WriteNumbered(dir.path(), "bw_shoe{angle}.png", 36, 10.0);
   ReplayOptions o;
   o.dir = dir.path().string();
@@ -93,7 +77,7 @@ TEST(ReplayCamera, ServesTheImageForThePlatesAngle) {
 }
 
 TEST(ReplayCamera, ServesAFolderInNaturalOrderInSequence) {
-  TempDir dir;
+  test_support::TempDir dir("revolve_replay");
   WriteNumbered(dir.path(), "img{index}.png", 12, 30.0);
   ReplayOptions o;
   o.dir = dir.path().string();
@@ -112,7 +96,7 @@ TEST(ReplayCamera, ServesAFolderInNaturalOrderInSequence) {
 }
 
 TEST(ReplayCamera, ReportsMissingFilesAndServesTheBackground) {
-  TempDir dir;
+  test_support::TempDir dir("revolve_replay");
   WriteNumbered(dir.path(), "s{index}.png", 3, 10.0);
   cv::imwrite((dir.path() / "empty.png").string(), cv::Mat(24, 32, CV_8UC3, cv::Scalar::all(7)));
   ReplayOptions o;
@@ -175,7 +159,7 @@ resolution = 64
 )";
 
 TEST(ReplayScan, ReplayingASimulatedScanGivesTheSameModel) {
-  TempDir dir;
+  test_support::TempDir dir("revolve_replay");
   // 1. A simulated scan of the vase.
   const auto simulated = Config(std::string(kCommon) + R"(
 [camera.synthetic]

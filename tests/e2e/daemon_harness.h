@@ -19,17 +19,14 @@
 #include <utility>
 #include <vector>
 
+#include "tests/support/test_files.h"
+
 namespace revolve::e2e {
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-inline std::string ReadAll(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test_support::ReadAll;
 
 // A child process with stdout and stderr in files.
 class Child {

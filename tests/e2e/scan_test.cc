@@ -1,12 +1,10 @@
 // End to end: the real `revolve` binary scanning the simulated rig.
-#include <sys/wait.h>
 
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <utility>
 
@@ -18,48 +16,24 @@
 
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
+#include "tests/support/test_files.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadAll(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using revolve::test_support::ReadAll;
+using revolve::test_support::RunResult;
 
 class ScanE2eTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("revolve_e2e_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
+  void SetUp() override { dir_ = revolve::test_support::FreshTestDir("revolve_e2e"); }
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }
 
   RunResult Run(const std::string& args) {
-    const fs::path out = dir_ / "stdout.txt";
-    const fs::path err = dir_ / "stderr.txt";
-    const std::string cmd = std::string(REVOLVE_BIN) + " " + args + " >" + out.string() + " 2>" +
-                            err.string() + " </dev/null";
-    const int status = std::system(cmd.c_str());
-    RunResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = ReadAll(out);
-    r.err = ReadAll(err);
-    return r;
+    return revolve::test_support::RunShell(std::string(REVOLVE_BIN) + " " + args, dir_);
   }
 
   fs::path WriteConfig(const std::string& name, const std::string& text) {

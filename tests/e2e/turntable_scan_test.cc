@@ -26,7 +26,7 @@ using revolve::turntable::test_support::HaveProgram;
 using revolve::turntable::test_support::kPython;
 using revolve::turntable::test_support::kSocat;
 using revolve::turntable::test_support::PtyPair;
-using revolve::turntable::test_support::ReadFile;
+using revolve::turntable::test_support::ReadAll;
 using revolve::turntable::test_support::TempDir;
 using revolve::turntable::test_support::WaitFor;
 using revolve::turntable::test_support::WaitForPort;
@@ -92,7 +92,7 @@ class TurntableScanE2e : public ::testing::Test {
     const std::string cmd =
         fmt::format("timeout 60 {} {} >{} 2>&1 </dev/null", kRevolve, args, out.string());
     const int status = std::system(cmd.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadFile(out)};
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadAll(out)};
   }
 
   // Runs the scan and checks the scan folder: complete, 36 stops, each read back within
@@ -104,7 +104,7 @@ class TurntableScanE2e : public ::testing::Test {
     const RunResult r = Run("scan --config " + config.string() + " --out " + scan.string());
     ASSERT_EQ(r.exit_code, 0) << r.out << (peer_ ? peer_->Logs() : "");
     EXPECT_THAT(r.out, HasSubstr("36/36"));
-    const auto manifest = nlohmann::json::parse(ReadFile(scan / "manifest.json"));
+    const auto manifest = nlohmann::json::parse(ReadAll(scan / "manifest.json"));
     EXPECT_EQ(manifest["state"], "complete");
     EXPECT_THAT(manifest["turntable"].get<std::string>(), HasSubstr("modbus"));
     ASSERT_EQ(manifest["stops"].size(), 36u);
@@ -114,7 +114,7 @@ class TurntableScanE2e : public ::testing::Test {
       // 0.05 deg tolerance + half a count (3200 counts per turn).
       EXPECT_NEAR(stop["readback_deg"].get<double>(), k * 10.0, 0.06) << k;
     }
-    const auto report = nlohmann::json::parse(ReadFile(scan / "report.json"));
+    const auto report = nlohmann::json::parse(ReadAll(scan / "report.json"));
     if (report.contains("accuracy") && report["accuracy"].contains("mean_surface_distance_mm")) {
       // A camera that saw the wrong angles would carve a round blob several mm off the box.
       EXPECT_LT(report["accuracy"]["mean_surface_distance_mm"].get<double>(), 2.5)
@@ -208,7 +208,7 @@ TEST_F(TurntableScanE2e, DriveAlarmMidScanStopsAndExplains) {
   const RunResult r = Run("scan --config " + config.string() + " --out " + scan.string());
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_THAT(r.out, HasSubstr("overcurrent: check the motor wiring"));
-  const auto manifest = nlohmann::json::parse(ReadFile(scan / "manifest.json"));
+  const auto manifest = nlohmann::json::parse(ReadAll(scan / "manifest.json"));
   EXPECT_EQ(manifest["state"], "failed");
   EXPECT_EQ(manifest["error"]["code"], "alarm");
   EXPECT_THAT(manifest["error"]["message"].get<std::string>(), HasSubstr("alarm 0x30"));

@@ -20,6 +20,7 @@
 #include "station/scan_command.h"
 #include "station/scan_geometry.h"
 #include "station/station_config.h"
+#include "tests/support/test_files.h"
 
 namespace revolve::station {
 namespace {
@@ -35,13 +36,7 @@ struct Outcome {
 
 class CalibrateCommandTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("revolve_calibrate_cmd_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
+  void SetUp() override { dir_ = test_support::FreshTestDir("revolve_calibrate_cmd"); }
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }

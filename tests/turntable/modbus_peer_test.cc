@@ -449,7 +449,7 @@ TEST_F(PeerTest, TurntableCommandMovesAndReports) {
     const std::string cmd = "timeout 30 " + kRevolve + " turntable --config " + config.string() +
                             " " + args + " >" + out.string() + " 2>&1 </dev/null";
     const int status = std::system(cmd.c_str());
-    return std::pair(WIFEXITED(status) ? WEXITSTATUS(status) : -1, test_support::ReadFile(out));
+    return std::pair(WIFEXITED(status) ? WEXITSTATUS(status) : -1, test_support::ReadAll(out));
   };
   auto [code, text] = run("move 45");  // 400 counts exactly
   EXPECT_EQ(code, 0) << text;

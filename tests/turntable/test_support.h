@@ -17,43 +17,16 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/support/test_files.h"
+
 namespace revolve::turntable::test_support {
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-inline std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// A fresh directory under the temp dir, removed with its contents on destruction.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = std::string("revolve_tt_") + std::to_string(::getpid()) + "_" +
-                       (info != nullptr ? info->name() : "x");
-    for (char& c : name) {
-      if (c == '/') c = '_';
-    }
-    path_ = fs::temp_directory_path() / name;
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+// The shared helpers (tests/support): ReadAll, and TempDir (revolve_tt_<pid>_<test>).
+using revolve::test_support::ReadAll;
+using revolve::test_support::TempDir;
 
 // A child process (argv[0] is the program path) with stdout and stderr in files. The destructor
 // sends SIGTERM, then SIGKILL after 2 s, and reaps it: a test never leaves a peer behind.
@@ -109,8 +82,8 @@ class ChildProcess {
     ::waitpid(pid_, &status, 0);
     exited_ = true;
   }
-  std::string Output() const { return ReadFile(log_prefix_.string() + ".out"); }
-  std::string Errors() const { return ReadFile(log_prefix_.string() + ".err"); }
+  std::string Output() const { return ReadAll(log_prefix_.string() + ".out"); }
+  std::string Errors() const { return ReadAll(log_prefix_.string() + ".err"); }
   std::string Logs() const { return "--- stdout:\n" + Output() + "--- stderr:\n" + Errors(); }
 
  private:
@@ -134,7 +107,7 @@ bool WaitFor(Predicate predicate, std::chrono::milliseconds timeout) {
 inline std::optional<int> WaitForPort(const fs::path& file, std::chrono::milliseconds timeout) {
   if (!WaitFor([&] { return fs::exists(file); }, timeout)) return std::nullopt;
   try {
-    return std::stoi(ReadFile(file));
+    return std::stoi(ReadAll(file));
   } catch (...) {
     return std::nullopt;
   }
