@@ -1,3 +1,8 @@
+#include <filesystem>
+#include <map>
+#include <string>
+#include <utility>
+
 #include <gtest/gtest.h>
 
 #include "station/station_config.h"
@@ -20,6 +25,31 @@ TEST(StationConfigTest, EmbeddedDefaultIsTheSimulatedRig) {
   EXPECT_EQ(cfg->turntable.backend, "mock");
   EXPECT_EQ(cfg->camera.backend, "synthetic");
   EXPECT_FALSE(cfg->text.empty());
+}
+
+// The shipped example configurations (config/examples/, systemd/revolved.toml) are what users
+// copy: each must load as it is, with the backend it says.
+TEST(StationConfigTest, EveryExampleConfigLoads) {
+  const std::filesystem::path source(REVOLVE_SOURCE_DIR);
+  std::map<std::string, std::pair<std::string, std::string>> expected = {
+      {"default.toml", {"mock", "synthetic"}},
+      {"rig-modbus-rtu-usb-camera.toml", {"modbus", "v4l2"}},
+      {"rig-gpio-pi-camera.toml", {"gpio", "libcamera"}},
+      {"replay-folder.toml", {"mock", "replay"}}};
+  int seen = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(source / "config/examples")) {
+    const std::string name = entry.path().filename().string();
+    SCOPED_TRACE(name);
+    auto cfg = LoadStationConfig(entry.path());
+    ASSERT_TRUE(cfg.has_value()) << cfg.error().message;
+    ASSERT_TRUE(expected.contains(name)) << "a new example: add it to this test";
+    EXPECT_EQ(cfg->turntable.backend, expected[name].first);
+    EXPECT_EQ(cfg->camera.backend, expected[name].second);
+    ++seen;
+  }
+  EXPECT_EQ(seen, static_cast<int>(expected.size()));
+  auto daemon = LoadStationConfig(source / "systemd/revolved.toml");
+  EXPECT_TRUE(daemon.has_value()) << daemon.error().message;
 }
 
 TEST(StationConfigTest, EmptyFileTakesDefaults) {
