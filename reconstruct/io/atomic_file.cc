@@ -89,9 +89,14 @@ Expected<void> AtomicFile::Commit() {
 }
 
 void AtomicFile::Flush() {
+  WriteAll(buffer_);
+  buffer_.clear();
+}
+
+void AtomicFile::WriteAll(std::string_view bytes) {
   std::size_t done = 0;
-  while (write_errno_ == 0 && done < buffer_.size()) {
-    const ssize_t n = ::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
+  while (write_errno_ == 0 && done < bytes.size()) {
+    const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
     if (n < 0) {
       if (errno == EINTR) {
         continue;
@@ -101,7 +106,6 @@ void AtomicFile::Flush() {
       done += static_cast<std::size_t>(n);
     }
   }
-  buffer_.clear();
 }
 
 Expected<void> WriteFileAtomically(const fs::path& path, std::string_view bytes) {
@@ -131,18 +135,31 @@ void AppendFixed(std::string* out, float value, int decimals) {
 
 namespace {
 
+// "00" "01" ... "99": two digits per division.
+constexpr char kDigitPairs[] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
 // Decimal digits of `value`, most significant first.
 char* WriteUnsigned(char* out, unsigned long long value) {
   char digits[24];
-  int n = 0;
-  do {
-    digits[n++] = static_cast<char>('0' + value % 10);
-    value /= 10;
-  } while (value != 0);
-  while (n > 0) {
-    *out++ = digits[--n];
+  int n = sizeof(digits);
+  while (value >= 100) {
+    const auto pair = static_cast<std::size_t>(value % 100);
+    value /= 100;
+    n -= 2;
+    std::memcpy(digits + n, kDigitPairs + 2 * pair, 2);
   }
-  return out;
+  if (value >= 10) {
+    n -= 2;
+    std::memcpy(digits + n, kDigitPairs + 2 * value, 2);
+  } else {
+    digits[--n] = static_cast<char>('0' + value);
+  }
+  const int count = static_cast<int>(sizeof(digits)) - n;
+  std::memcpy(out, digits + n, static_cast<std::size_t>(count));
+  return out + count;
 }
 
 // WriteFixed with the number of decimals known at compile time (constant divisors).
@@ -170,9 +187,13 @@ char* WriteFixedN(char* out, double scaled) {
     --digits;
   }
   *out = '.';
-  for (int d = digits; d >= 1; --d) {
-    out[d] = static_cast<char>('0' + fraction % 10);
-    fraction /= 10;
+  int d = digits;
+  for (; d >= 2; d -= 2) {
+    std::memcpy(out + d - 1, kDigitPairs + 2 * (fraction % 100), 2);
+    fraction /= 100;
+  }
+  if (d == 1) {
+    out[1] = static_cast<char>('0' + fraction);
   }
   return out + digits + 1;
 }

@@ -40,6 +40,12 @@ class AtomicFile {
 
   Expected<void> Open();
   void Append(std::string_view bytes) {
+    if (bytes.size() >= kDirectSize) {
+      // Large blocks (a text writer's full buffer, a PNG) go to the file without a copy.
+      Flush();
+      WriteAll(bytes);
+      return;
+    }
     buffer_.append(bytes);
     if (buffer_.size() >= kBufferSize) {
       Flush();
@@ -53,7 +59,10 @@ class AtomicFile {
 
  private:
   static constexpr std::size_t kBufferSize = 1 << 20;
+  static constexpr std::size_t kDirectSize = 1 << 16;
   void Flush();
+  // Writes all of `bytes` at the file's end (records the first error).
+  void WriteAll(std::string_view bytes);
 
   std::filesystem::path path_;
   std::string temp_;
