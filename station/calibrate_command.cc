@@ -436,6 +436,7 @@ class Calibrator {
     if (!rig) return std::unexpected(rig.error());
     if (auto size = FrameSizeMatches(camera); !size) return std::unexpected(size.error());
     std::vector<double> angles;
+    angles.reserve(config_.scan.stops);
     for (int k = 0; k < config_.scan.stops; ++k) angles.push_back(k * config_.scan.step_deg);
     fmt::print(out_,
                "axis: lay the board ({}) flat on the plate (a camera looking down at it) or stand "

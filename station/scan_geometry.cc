@@ -118,9 +118,9 @@ cv::Mat ScanGeometry::Undistort(const cv::Mat& frame) const {
 View ScanGeometry::ViewAt(double angle_deg, int width_px, int height_px) const {
   View view;
   if (source_ == GeometrySource::kCalibration) {
-    view.pixel_from_object = rig_->PixelFromObject(angle_deg);
+    view.pixel_from_object = rig_.value().PixelFromObject(angle_deg);  // set with the source
   } else if (source_ == GeometrySource::kCamera) {
-    view = *camera_->KnownView(angle_deg);
+    view = camera_->KnownView(angle_deg).value();  // the source says it has one
   } else {
     view = ThesisViewWithAxis(width_px, height_px, angle_deg, axis_column_px_, axis_tilt_deg_);
   }
@@ -195,7 +195,7 @@ nlohmann::json ScanGeometry::ReportJson() const {
       j["units"] = "mm";
       j["scale"] = "metric (calibration)";
       j["camera_model"] = "calibrated pinhole (calibration.toml; frames undistorted)";
-      const cal::Calibration& c = *calibration_;
+      const cal::Calibration& c = calibration_.value();
       nlohmann::json calibration = {{"file", calibration_file_.string()},
                                     {"copy", "calibration.toml"},
                                     {"created", c.created},

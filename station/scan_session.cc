@@ -252,7 +252,7 @@ Expected<ScanResult> ScanSession::Execute(std::stop_token stop, std::vector<Save
       if (auto state = devices_.turntable->State(); state && state->alarm_code) {
         alarm_code = state->alarm_code;
         alarm_text = state->alarm_text;
-        manifest_["error"]["alarm_code"] = *alarm_code;
+        manifest_["error"]["alarm_code"] = *state->alarm_code;
         manifest_["error"]["alarm_text"] = alarm_text;
       }
     } else {
@@ -539,10 +539,12 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   auto files =
       reconstruct::WriteModel(*mesh, folder_.model_dir(), "model", config_.reconstruct.formats);
   if (!files) return std::unexpected(files.error());
+  result.model_files.reserve(files->size());
   for (const auto& f : *files) {
     result.model_files.push_back(std::filesystem::relative(f, folder_.dir()).string());
   }
   std::vector<cv::Mat> tiles;
+  tiles.reserve(thumbnails.size());
   for (auto& [index, tile] : thumbnails) tiles.push_back(tile);
   if (auto w = folder_.WriteImage("contact_sheet.png", AssembleContactSheet(tiles)); !w) {
     return std::unexpected(w.error());
