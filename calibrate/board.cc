@@ -79,7 +79,8 @@ void CanonicaliseChessboard(const cv::Mat& grey, int cols, int rows,
   const cv::Point2f dy = p[cols] - p[0];
   if (dx.x * dy.y - dx.y * dy.x < 0.0f) {  // mirrored traversal: reverse each row
     for (int r = 0; r < rows; ++r) {
-      std::reverse(p.begin() + r * cols, p.begin() + (r + 1) * cols);
+      const std::ptrdiff_t row_start = static_cast<std::ptrdiff_t>(r) * cols;
+      std::reverse(p.begin() + row_start, p.begin() + row_start + cols);
     }
   }
   // Inner square between corners (c, r), (c+1, r), (c, r+1), (c+1, r+1) is square (c+1, r+1),
@@ -277,7 +278,9 @@ bool Board::OrientationUnique() const {
 }
 
 Eigen::Vector3d Board::Corner(int id) const {
-  return Eigen::Vector3d((id % cols) * square_mm, (id / cols) * square_mm, 0.0);
+  const int column = id % cols;
+  const int row = id / cols;  // whole rows
+  return Eigen::Vector3d(column * square_mm, row * square_mm, 0.0);
 }
 
 std::string Board::Describe() const {

@@ -47,7 +47,7 @@ Expected<std::int64_t> RequiredInteger(const config::Section& section, std::stri
   do {                                                   \
     auto value_ = (expr);                                \
     if (!value_) return std::unexpected(value_.error()); \
-    out = *value_;                                       \
+    (out) = *value_;                                     \
   } while (false)
 
 Expected<Board> ParseBoard(const config::Section& s) {
@@ -129,8 +129,7 @@ Expected<void> Calibration::CheckFrameSize(int width_px, int height_px) const {
 
 std::string FormatCalibration(const Calibration& c) {
   std::string out;
-  out +=
-      "# revolve calibration (README.md, \"Calibration\"). Lengths in mm, angles in degrees;\n";
+  out += "# revolve calibration (README.md, \"Calibration\"). Lengths in mm, angles in degrees;\n";
   out += "# pixel (0, 0) is the centre of the top-left pixel. Made by `revolve calibrate`.\n";
   out += fmt::format("format_version = {}\n", c.format_version);
   out += fmt::format("software_version = \"{}\"\n", c.software_version);

@@ -12,7 +12,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
   do {                                                   \
     auto value_ = (expr);                                \
     if (!value_) return std::unexpected(value_.error()); \
-    out = *value_;                                       \
+    (out) = *value_;                                     \
   } while (false)
 
 Expected<void> Done(const config::Section& s) { return s.CheckNoUnknownKeys(); }

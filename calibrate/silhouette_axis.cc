@@ -194,11 +194,13 @@ Expected<SilhouetteAxis> AxisFromSilhouettes(const std::vector<cv::Mat>& masks,
   Line line;
   {
     std::vector<double> columns;
+    columns.reserve(samples.size());
     for (const Sample& s : samples) columns.push_back(s.column);
     line.column = Median(columns);
   }
   for (int iteration = 0; iteration < 6; ++iteration) {
     std::vector<double> abs_residuals;
+    abs_residuals.reserve(samples.size());
     for (const Sample& s : samples) {
       abs_residuals.push_back(std::abs(s.column - line.column - line.slope * (s.row - row0)));
     }

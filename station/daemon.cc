@@ -276,7 +276,7 @@ class Daemon::Impl {
   // ---- Scans ---------------------------------------------------------------------------------
 
   std::string UniqueScanId() const {
-    const std::string base = NewScanId();
+    std::string base = NewScanId();
     std::error_code ec;
     if (!std::filesystem::exists(scans_dir_ / base, ec)) return base;
     for (int n = 2;; ++n) {
@@ -369,8 +369,9 @@ class Daemon::Impl {
       if (!folder) return std::unexpected(folder.error());
       job->folder.emplace(std::move(*folder));
     }
-    job->folder->SetByteLimit(job->config.station.simulate.disk_limit_bytes);
-    job->session = std::make_unique<ScanSession>(job->config, devices_, *job->folder, job->id);
+    ScanFolder& folder = job->folder.value();  // opened or created above
+    folder.SetByteLimit(job->config.station.simulate.disk_limit_bytes);
+    job->session = std::make_unique<ScanSession>(job->config, devices_, folder, job->id);
     job->session->OnEvent([this](const ScanEvent& event) { Post(event); });
     ScanJob* raw = job.get();
     raw->thread = std::jthread([this, raw] {
@@ -624,7 +625,7 @@ class Daemon::Impl {
       const ssize_t n = ::recv(c.fd.get(), buf, sizeof(buf), 0);
       if (n > 0) {
         c.in.Append(std::string_view(buf, static_cast<std::size_t>(n)));
-        while (auto item = c.in.Next()) {
+        for (auto item = c.in.Next(); item.has_value(); item = c.in.Next()) {
           if (item->kind == LineSplitter::Kind::kTooLong) {
             Queue(c, ErrorLine(nullptr, Error{ErrorCode::kProtocol,
                                               fmt::format("request longer than {} bytes "

@@ -1,5 +1,7 @@
 // revolve: the command-line front end. Thin: parses arguments and calls the station library.
 #include <csignal>
+#include <cstdio>
+#include <exception>
 #include <iostream>
 #include <stop_token>
 #include <thread>
@@ -38,9 +40,7 @@ class SignalStop {
   std::jthread watcher_;
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int Main(int argc, char** argv) {
   CLI::App app{"revolve: turntable 3D capture station"};
   app.require_subcommand(1);
 
@@ -75,4 +75,19 @@ int main(int argc, char** argv) {
     return revolve::station::RunScanCommand(scan_options, signals.token(), std::cout, std::cerr);
   }
   return revolve::station::kExitUsage;
+}
+
+}  // namespace
+
+// No exception is expected past the commands (errors are values); one that escapes is a bug:
+// say so and exit with EX_SOFTWARE instead of aborting without a word.
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: internal error: %s\n", "revolve", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: internal error\n", "revolve");
+  }
+  return 70;
 }

@@ -2,6 +2,7 @@
 // runs station::Daemon.
 #include <csignal>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <optional>
 
@@ -12,7 +13,9 @@
 #include "station/scan_command.h"
 #include "station/station_config.h"
 
-int main(int argc, char** argv) {
+namespace {
+
+int Main(int argc, char** argv) {
   namespace station = revolve::station;
   CLI::App app{"revolved: the revolve turntable capture station daemon"};
   std::optional<std::filesystem::path> config_path;
@@ -55,4 +58,19 @@ int main(int argc, char** argv) {
                                                                 : station::kExitFailed;
   }
   return (*daemon)->Run();
+}
+
+}  // namespace
+
+// No exception is expected past the commands (errors are values); one that escapes is a bug:
+// say so and exit with EX_SOFTWARE instead of aborting without a word.
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: internal error: %s\n", "revolved", e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: internal error\n", "revolved");
+  }
+  return 70;
 }

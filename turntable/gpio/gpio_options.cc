@@ -72,7 +72,7 @@ Expected<GpioOptions> ParseGpioOptions(const config::Section& section) {
   o.home_reverse = home_direction == "reverse";
   r.Number("idle_disable_s", o.idle_disable_s, 0.0, 86400.0);
   r.Boolean("realtime", o.realtime);
-  if (r.error()) return std::unexpected(*r.error());
+  if (const auto& error = r.error()) return std::unexpected(*error);
   // A step period must leave room for the pulse.
   if (o.pulse_us * 2e-6 * o.max_step_rate_hz > 1.0) {
     return std::unexpected(section.BadValue(

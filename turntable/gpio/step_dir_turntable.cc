@@ -194,7 +194,8 @@ StepDirTurntable::EmitResult StepDirTurntable::Emit(std::int64_t delta, double s
 
 Expected<void> StepDirTurntable::HomeWithSwitch(Clock::time_point deadline) {
   // The search direction is given in plate terms; counts are motor steps.
-  const std::int64_t direction = (options_.home_reverse ? -1 : 1) * (options_.reverse ? -1 : 1);
+  const std::int64_t direction =
+      std::int64_t{options_.home_reverse ? -1 : 1} * (options_.reverse ? -1 : 1);
   const auto debounce = Us(options_.home_debounce_ms * 1000.0);
   const auto search_steps = static_cast<std::int64_t>(
       std::ceil(options_.home_max_deg / 360.0 * options_.StepsPerPlateRev()));

@@ -213,9 +213,10 @@ Expected<void> MockTurntable::RunMove(std::unique_lock<std::mutex>& lock, double
             ErrorCode::kAborted,
             fmt::format("the move to {} deg was stopped at {:.3f} deg", target_deg, position_deg_));
       case Phase::kAlarm:
-        return MakeError(ErrorCode::kAlarm,
-                         fmt::format("drive alarm {:#x} at {:.3f} deg on the way to {} deg: {}",
-                                     *alarm_code_, position_deg_, target_deg, alarm_text_));
+        return MakeError(
+            ErrorCode::kAlarm,
+            fmt::format("drive alarm {:#x} at {:.3f} deg on the way to {} deg: {}",
+                        alarm_code_.value_or(0), position_deg_, target_deg, alarm_text_));
       case Phase::kLinkLost:
         return MakeError(ErrorCode::kLinkDown,
                          fmt::format("lost the link to the (mock) drive during the move to {} "

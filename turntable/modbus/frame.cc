@@ -190,7 +190,7 @@ std::expected<Request, PduRejection> DecodeRequestPdu(std::span<const std::uint8
       if (pdu.size() < 6) return reject(ExceptionCode::kIllegalDataValue);
       const std::uint16_t count = GetU16(pdu, 3);
       const std::size_t byte_count = pdu[5];
-      if (count < 1 || count > kMaxWriteRegisters || byte_count != count * 2u ||
+      if (count < 1 || count > kMaxWriteRegisters || byte_count != std::size_t{count} * 2u ||
           pdu.size() != 6 + byte_count) {
         return reject(ExceptionCode::kIllegalDataValue);
       }
@@ -217,8 +217,7 @@ std::vector<std::uint8_t> EncodeResponsePdu(const Request& request,
     case FunctionCode::kWriteSingleCoil:
     case FunctionCode::kWriteSingleRegister: {
       // The response echoes the request.
-      const std::vector<std::uint8_t> echo = EncodeRequestPdu(request);
-      return echo;
+      return EncodeRequestPdu(request);
     }
     case FunctionCode::kWriteMultipleRegisters:
       PutU16(pdu, request.address);

@@ -75,7 +75,7 @@ Expected<ModbusOptions> ParseModbusOptions(const config::Section& section) {
   r.Number("stall_timeout_ms", o.stall_timeout_ms, 10.0, 600000.0);
   r.Integer("in_position_polls", o.in_position_polls, 1, 10);
   r.Number("idle_disable_s", o.idle_disable_s, 0.0, 86400.0);
-  if (r.error()) return std::unexpected(*r.error());
+  if (const auto& error = r.error()) return std::unexpected(*error);
 
   // The profile is resolved and checked now, so that a config check reports a missing or
   // broken profile, and so that [params] overrides can be checked against its [params].
