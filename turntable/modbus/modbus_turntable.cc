@@ -353,9 +353,9 @@ Expected<void> ModbusTurntable::WaitForHome(Clock::time_point deadline) {
     if (!status) return std::unexpected(status.error());
     const Clock::time_point now = Clock::now();
     seen_moving = seen_moving || status->moving;
+    const std::optional<bool> homed = status->homed;  // nullopt: the profile has no "homed" rule
     const bool done = !status->moving &&
-                      (status->homed ? *status->homed
-                                     : seen_moving || now - start > 2 * FromMs(options_.poll_ms));
+                      (homed ? *homed : seen_moving || now - start > 2 * FromMs(options_.poll_ms));
     if (done) {
       std::lock_guard lock(mutex_);
       offset_counts_ = status->position_counts;
@@ -368,7 +368,7 @@ Expected<void> ModbusTurntable::WaitForHome(Clock::time_point deadline) {
                        fmt::format("homing did not finish by its deadline (drive {}, homed {}): "
                                    "check the home sensor and the drive's homing settings",
                                    status->moving ? "moving" : "stopped",
-                                   status->homed ? (*status->homed ? "yes" : "no") : "unknown"));
+                                   homed ? (*homed ? "yes" : "no") : "unknown"));
     }
     if (!Pause(std::min(now + FromMs(options_.poll_ms), deadline))) {
       StopMotor();
