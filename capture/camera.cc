@@ -194,6 +194,7 @@ std::string ListCameraDevices() {
     }
     for (const PixelFormatInfo& f : d.formats) {
       std::vector<std::string> sizes;
+      sizes.reserve(f.sizes.size());
       for (const auto& [w, h] : f.sizes) sizes.push_back(fmt::format("{}x{}", w, h));
       out += fmt::format("    {} {}{}: {}\n", FourCcToString(f.fourcc), f.description,
                          CanConvert(f.fourcc) ? "" : " (not supported by revolve)",
