@@ -1,7 +1,5 @@
 // revolve: the command-line front end. Thin: parses arguments and calls the station library.
 #include <csignal>
-#include <cstdio>
-#include <exception>
 #include <iostream>
 #include <stop_token>
 #include <thread>
@@ -10,6 +8,7 @@
 
 #include "station/apps/calibrate_commands.h"
 #include "station/apps/camera_commands.h"
+#include "station/apps/guarded_main.h"
 #include "station/apps/station_commands.h"
 #include "station/apps/turntable_commands.h"
 #include "station/scan_command.h"
@@ -79,15 +78,6 @@ int Main(int argc, char** argv) {
 
 }  // namespace
 
-// No exception is expected past the commands (errors are values); one that escapes is a bug:
-// say so and exit with EX_SOFTWARE instead of aborting without a word.
 int main(int argc, char** argv) {
-  try {
-    return Main(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: internal error: %s\n", "revolve", e.what());
-  } catch (...) {
-    std::fprintf(stderr, "%s: internal error\n", "revolve");
-  }
-  return 70;
+  return revolve::station::GuardedMain("revolve", Main, argc, argv);
 }

@@ -2,13 +2,13 @@
 // runs station::Daemon.
 #include <csignal>
 #include <cstdio>
-#include <exception>
 #include <filesystem>
 #include <optional>
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include "station/apps/guarded_main.h"
 #include "station/daemon.h"
 #include "station/scan_command.h"
 #include "station/station_config.h"
@@ -62,15 +62,6 @@ int Main(int argc, char** argv) {
 
 }  // namespace
 
-// No exception is expected past the commands (errors are values); one that escapes is a bug:
-// say so and exit with EX_SOFTWARE instead of aborting without a word.
 int main(int argc, char** argv) {
-  try {
-    return Main(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: internal error: %s\n", "revolved", e.what());
-  } catch (...) {
-    std::fprintf(stderr, "%s: internal error\n", "revolved");
-  }
-  return 70;
+  return revolve::station::GuardedMain("revolved", Main, argc, argv);
 }
