@@ -9,6 +9,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 
 #include <fmt/format.h>
 
@@ -253,6 +255,22 @@ void TextOut::Put(std::string_view text) {
 void TextOut::Flush() {
   file_->Append(std::string_view(buffer_.data(), end_));
   end_ = 0;
+}
+
+Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+Error BadFile(const std::filesystem::path& path, std::string_view what) {
+  return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
 }
 
 }  // namespace revolve::reconstruct::internal

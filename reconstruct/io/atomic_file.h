@@ -74,6 +74,11 @@ class AtomicFile {
 // The whole of `bytes` as `path`, atomically.
 Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::string_view bytes);
 
+// The whole file, for the readers. Errors: not_found or io, naming the path.
+Expected<std::string> ReadWholeFile(const std::filesystem::path& path);
+// bad_input "<path>: <what>": a file that is not what its reader expects.
+Error BadFile(const std::filesystem::path& path, std::string_view what);
+
 // Shortest text that reads back as the same float.
 void AppendFloat(std::string* out, float value);
 void AppendInt(std::string* out, long long value);

@@ -27,24 +27,8 @@ static_assert(std::endian::native == std::endian::little,
 using internal::AppendFixed;
 using internal::AppendInt;
 using internal::AtomicFile;
-
-Expected<std::string> ReadWholeFile(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
-  }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
-Error BadFile(const fs::path& path, std::string_view what) {
-  return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
-}
+using internal::BadFile;
+using internal::ReadWholeFile;
 
 // Validates face indices and appends fan triangles of `polygon`.
 bool AddPolygon(const std::vector<int>& polygon, std::size_t vertex_count, Mesh* mesh) {

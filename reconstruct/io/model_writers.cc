@@ -27,28 +27,12 @@ static_assert(std::endian::native == std::endian::little,
 using internal::AppendFixed;
 using internal::AppendInt;
 using internal::AtomicFile;
+using internal::BadFile;
+using internal::ReadWholeFile;
 
 constexpr const char* kMaterialName = "revolve";
 // Text coordinates: 0.1 um in millimetres, far below any scan's accuracy.
 constexpr int kMmDecimals = 4;
-
-Expected<std::string> ReadWholeFile(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
-  }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
-Error BadFile(const fs::path& path, std::string_view what) {
-  return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
-}
 
 Eigen::Vector3f FaceNormal(const Mesh& mesh, const Eigen::Vector3i& f) {
   const Eigen::Vector3f& a = mesh.vertices[f[0]];

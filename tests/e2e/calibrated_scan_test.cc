@@ -43,9 +43,7 @@ constexpr double kAxisStepDeg = 15.0;
 
 class CalibratedScanTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = test_support::FreshTestDir("revolve_calibrated");
-  }
+  void SetUp() override { dir_ = test_support::FreshTestDir("revolve_calibrated"); }
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }
