@@ -9,6 +9,8 @@
 
 #include <Eigen/Geometry>
 
+#include "reconstruct/union_find.h"
+
 namespace revolve::reconstruct {
 
 BitVolume::BitVolume(const Eigen::Vector3i& dims) : dims_(dims.cwiseMax(0)) {
@@ -220,25 +222,6 @@ const CaseTable& Table() {
 }
 
 // ---------------------------------------------------------------------------------------------
-
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int Find(int x) {
-    while (parent[x] != x) {
-      parent[x] = parent[parent[x]];
-      x = parent[x];
-    }
-    return x;
-  }
-  void Unite(int a, int b) {
-    a = Find(a);
-    b = Find(b);
-    if (a != b) {
-      parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
-};
 
 }  // namespace
 

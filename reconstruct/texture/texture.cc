@@ -10,6 +10,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "reconstruct/union_find.h"
+
 namespace revolve::reconstruct {
 namespace {
 
@@ -138,25 +140,6 @@ Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
   }
   return out;
 }
-
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int Find(int x) {
-    while (parent[x] != x) {
-      parent[x] = parent[parent[x]];
-      x = parent[x];
-    }
-    return x;
-  }
-  void Unite(int a, int b) {
-    a = Find(a);
-    b = Find(b);
-    if (a != b) {
-      parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
-};
 
 // The (up to 3) faces sharing an edge with each face; -1 for a border edge.
 std::vector<std::array<int, 3>> FaceNeighbours(const Mesh& mesh) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <stop_token>
 #include <thread>
@@ -50,6 +51,13 @@ resolution = 48
   return *cfg;
 }
 
+// An event callback that keeps the notes of the non-terminal events.
+std::function<void(const ScanEvent&)> CollectNotes(std::vector<std::string>* notes) {
+  return [notes](const ScanEvent& e) {
+    if (!e.note.empty() && !IsTerminal(e.state)) notes->push_back(e.note);
+  };
+}
+
 class ScanSessionTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -60,18 +68,15 @@ class ScanSessionTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // Opens the devices of `cfg` and runs one scan into dir_; `notes` collects the events' notes
-  // (terminal events excluded).
+  // Opens the devices of `cfg` and runs one scan into dir_, passing every event to `on_event`.
   Expected<ScanResult> RunScan(const StationConfig& cfg,
-                               std::vector<std::string>* notes = nullptr) {
+                               std::function<void(const ScanEvent&)> on_event = {}) {
     auto devices = OpenDevices(cfg);
     if (!devices) return std::unexpected(devices.error());
     auto folder = ScanFolder::Create(dir_);
     if (!folder) return std::unexpected(folder.error());
     ScanSession session(cfg, *devices, *folder);
-    session.OnEvent([notes](const ScanEvent& e) {
-      if (notes != nullptr && !e.note.empty() && !IsTerminal(e.state)) notes->push_back(e.note);
-    });
+    if (on_event) session.OnEvent(std::move(on_event));
     return session.Run(std::stop_token());
   }
 
@@ -185,16 +190,8 @@ TEST_F(ScanSessionTest, ALostFrameIsRetriedAndTheScanCompletes) {
   cfg.station.camera_retry_delay_ms = 1;
   cfg.station.simulate.camera_fail_after = 1;
   cfg.station.simulate.camera_fail_count = 2;
-  auto devices = OpenDevices(cfg);
-  ASSERT_TRUE(devices.has_value()) << devices.error().message;
-  auto folder = ScanFolder::Create(dir_);
-  ASSERT_TRUE(folder.has_value());
-  ScanSession session(cfg, *devices, *folder);
   std::vector<std::string> notes;
-  session.OnEvent([&](const ScanEvent& e) {
-    if (!e.note.empty() && !IsTerminal(e.state)) notes.push_back(e.note);
-  });
-  auto result = session.Run(std::stop_token());
+  auto result = RunScan(cfg, CollectNotes(&notes));
   ASSERT_TRUE(result.has_value()) << result.error().message;
   ASSERT_EQ(notes.size(), 2u);
   EXPECT_NE(notes[0].find("re-try 1 of 2"), std::string::npos) << notes[0];
@@ -206,14 +203,8 @@ TEST_F(ScanSessionTest, ACameraThatStaysLostFailsTheScanCleanly) {
   cfg.station.camera_retry_delay_ms = 1;
   cfg.station.simulate.camera_fail_after = 2;
   cfg.station.simulate.camera_fail_count = 1000;
-  auto devices = OpenDevices(cfg);
-  ASSERT_TRUE(devices.has_value());
-  auto folder = ScanFolder::Create(dir_);
-  ASSERT_TRUE(folder.has_value());
-  ScanSession session(cfg, *devices, *folder);
   std::optional<ScanEvent> last;
-  session.OnEvent([&](const ScanEvent& e) { last = e; });
-  auto result = session.Run(std::stop_token());
+  auto result = RunScan(cfg, [&](const ScanEvent& e) { last = e; });
   ASSERT_FALSE(result.has_value());
   EXPECT_EQ(result.error().code, ErrorCode::kNoDevice);
   EXPECT_NE(result.error().message.find("gave up after 2 re-tries"), std::string::npos)
@@ -236,7 +227,7 @@ TEST_F(ScanSessionTest, ABlankFrameIsCapturedAgainAndTheScanIsClean) {
   cfg.station.simulate.camera_glitch_after = 2;  // stop 2's first capture
   cfg.station.simulate.camera_glitch_count = 1;
   std::vector<std::string> notes;
-  auto result = RunScan(cfg, &notes);
+  auto result = RunScan(cfg, CollectNotes(&notes));
   ASSERT_TRUE(result.has_value()) << result.error().message;
   ASSERT_EQ(notes.size(), 1u);
   EXPECT_NE(notes[0].find("stop 2:"), std::string::npos) << notes[0];
@@ -258,7 +249,7 @@ TEST_F(ScanSessionTest, AFrameThatStaysBadIsKeptWithAWarning) {
     cfg.station.simulate.camera_glitch_after = 1;  // stop 1, both captures
     cfg.station.simulate.camera_glitch_count = 2;
     std::vector<std::string> notes;
-    auto result = RunScan(cfg, &notes);
+    auto result = RunScan(cfg, CollectNotes(&notes));
     ASSERT_TRUE(result.has_value()) << result.error().message;
     ASSERT_EQ(notes.size(), 2u);
     EXPECT_NE(notes[0].find("capturing again (1 of 1)"), std::string::npos) << notes[0];
@@ -318,14 +309,8 @@ TEST_F(ScanSessionTest, ADriveAlarmFailsTheScanWithTheAlarmCode) {
   cfg.station.simulate.drive_fault = "alarm";
   cfg.station.simulate.drive_fault_move = 2;
   cfg.station.simulate.drive_alarm_code = 0x31;
-  auto devices = OpenDevices(cfg);
-  ASSERT_TRUE(devices.has_value());
-  auto folder = ScanFolder::Create(dir_);
-  ASSERT_TRUE(folder.has_value());
-  ScanSession session(cfg, *devices, *folder);
   std::optional<ScanEvent> last;
-  session.OnEvent([&](const ScanEvent& e) { last = e; });
-  auto result = session.Run(std::stop_token());
+  auto result = RunScan(cfg, [&](const ScanEvent& e) { last = e; });
   ASSERT_FALSE(result.has_value());
   EXPECT_EQ(result.error().code, ErrorCode::kAlarm);
   ASSERT_TRUE(last.has_value());
