@@ -1,8 +1,11 @@
 #include "reconstruct/hull/visual_hull.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
+#include <limits>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -198,19 +201,6 @@ VisualHull::BlockClass VisualHull::Classify(const ViewData& view, const Sat& sat
     for (int r = 0; r < 3; ++r) projected[c][r] = px[x][r] + py[y][r] + pz[z][r] + p(r, 3);
   }
   return ClassifyProjected(view, sat, projected, 8);
-}
-
-VisualHull::BlockClass VisualHull::ClassifyHull(const ViewData& view, const Sat& sat,
-                                                const Eigen::Vector3d* points, int count) {
-  double projected[8][3];
-  count = std::min(count, 8);
-  for (int c = 0; c < count; ++c) {
-    const Homogeneous h = Project(view.pixel_from_object, points[c]);
-    projected[c][0] = h.x;
-    projected[c][1] = h.y;
-    projected[c][2] = h.w;
-  }
-  return ClassifyProjected(view, sat, projected, count);
 }
 
 VisualHull::BlockClass VisualHull::ClassifyProjected(const ViewData& view, const Sat& sat,
@@ -623,18 +613,187 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
   return t_max + 1.0;
 }
 
+namespace {
+
+// How far (px, along u and along v) a segment of at most one voxel along grid axis `axis` can
+// move in a view's image, for segments inside the box whose 8 corners project to `projected`
+// (P * [X; 1]); infinite when part of the box is not in front of the camera. With
+// u(X) = x / w and a step d (x, w change by a = P0 . d, c = P2 . d), u(X + t d) - u(X) =
+// t (a - c u(X)) / w(X + t d), so |du| <= (|a - c u0| + |c| |u(X) - u0|) / w_min for any u0:
+// u0 at the middle of the box's u range (the box projects into the corners' convex hull) and
+// w_min the corners' least w (w is linear) bound it for every point of the box.
+struct StepBound {
+  double u_px[3];
+  double v_px[3];
+};
+StepBound MaxStepPx(const Matrix34d& p, const double (*projected)[3], double voxel_mm) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  StepBound bound{{kInfinity, kInfinity, kInfinity}, {kInfinity, kInfinity, kInfinity}};
+  double w_min = kInfinity;
+  double u_min = kInfinity, v_min = kInfinity, u_max = -kInfinity, v_max = -kInfinity;
+  for (int c = 0; c < 8; ++c) {
+    const double w = projected[c][2];
+    if (!(w > 0.0)) return bound;
+    w_min = std::min(w_min, w);
+    const double u = projected[c][0] / w;
+    const double v = projected[c][1] / w;
+    u_min = std::min(u_min, u);
+    u_max = std::max(u_max, u);
+    v_min = std::min(v_min, v);
+    v_max = std::max(v_max, v);
+  }
+  const double u0 = 0.5 * (u_min + u_max), half_u = 0.5 * (u_max - u_min);
+  const double v0 = 0.5 * (v_min + v_max), half_v = 0.5 * (v_max - v_min);
+  const double scale = voxel_mm / w_min;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double c = std::abs(p(2, axis));
+    const double u = (std::abs(p(0, axis) - u0 * p(2, axis)) + c * half_u) * scale;
+    const double v = (std::abs(p(1, axis) - v0 * p(2, axis)) + c * half_v) * scale;
+    if (std::isfinite(u) && std::isfinite(v)) {
+      bound.u_px[axis] = u;
+      bound.v_px[axis] = v;
+    }
+  }
+  return bound;
+}
+
+// A view's silhouette over the bounding rectangle of its non-zero pixels, one bit per pixel
+// (a row fits a few cache lines: the surface tests read it at random).
+class PackedMask {
+ public:
+  void Build(const cv::Mat& mask01, const cv::Rect& roi) {
+    roi_ = roi;
+    words_ = (roi.width + 63) / 64 + 1;  // one more: a read of a row may take the next word
+    bits_.assign(static_cast<std::size_t>(words_) * std::max(roi.height, 0), 0);
+    for (int y = 0; y < roi.height; ++y) {
+      const std::uint8_t* row = mask01.ptr<std::uint8_t>(roi.y + y) + roi.x;
+      std::uint64_t* out = &bits_[static_cast<std::size_t>(y) * words_];
+      int x = 0;
+      // 8 pixels (0/1 bytes) to 8 bits: each byte gathers its 7 successors' bits above its own.
+      for (; x + 8 <= roi.width; x += 8) {
+        std::uint64_t bytes;
+        std::memcpy(&bytes, row + x, 8);
+        bytes |= bytes >> 7;
+        bytes |= bytes >> 14;
+        bytes |= bytes >> 28;
+        out[x >> 6] |= (bytes & 0xFF) << (x & 63);
+      }
+      for (; x < roi.width; ++x) {
+        out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
+      }
+    }
+  }
+  // Whether every pixel of [u0, u1] x [v0, v1] (image pixels; empty: true) is on the
+  // silhouette. Pixels outside the rectangle are off.
+  bool AllOn(int u0, int v0, int u1, int v1) const {
+    if (u0 > u1 || v0 > v1) return true;
+    u0 -= roi_.x;
+    u1 -= roi_.x;
+    v0 -= roi_.y;
+    v1 -= roi_.y;
+    if (u0 < 0 || v0 < 0 || u1 >= roi_.width || v1 >= roi_.height) return false;
+    const int cols = u1 - u0 + 1;
+    if (cols > 57) return AllOnWide(u0, v0, u1, v1);
+    const std::uint64_t want = (std::uint64_t{1} << cols) - 1;
+    const int word = u0 >> 6;
+    const int shift = u0 & 63;
+    // Up to 4 rows without a branch per row (the outcome is hard to predict).
+    const int rows = v1 - v0 + 1;
+    std::uint64_t all = ~std::uint64_t{0};
+    for (int r = 0; r < std::max(rows, 4); ++r) {
+      const std::uint64_t* row =
+          &bits_[static_cast<std::size_t>(std::min(v0 + r, v1)) * words_ + word];
+      // (x << 1) << (63 - shift): the next word's low bits, 0 when shift is 0.
+      const std::uint64_t value = (row[0] >> shift) | ((row[1] << 1) << (63 - shift));
+      all &= value;
+    }
+    return (all & want) == want;
+  }
+
+  // Whether every point of the convex hull of 8 points (their projections P * [X; 1]) that
+  // the view sees lands on the silhouette: ClassifyProjected's kUnaffected.
+  bool AllOnOrUnseen(const double (*projected)[3], int width, int height) const {
+    double u_min = std::numeric_limits<double>::infinity();
+    double v_min = u_min, u_max = -u_min, v_max = -u_min;
+    int in_front = 0;
+    for (int c = 0; c < 8; ++c) {
+      if (!(projected[c][2] > 0.0)) continue;
+      ++in_front;
+      const double inv_w = 1.0 / projected[c][2];
+      const double u = projected[c][0] * inv_w;
+      const double v = projected[c][1] * inv_w;
+      u_min = std::min(u_min, u);
+      u_max = std::max(u_max, u);
+      v_min = std::min(v_min, v);
+      v_max = std::max(v_max, v);
+    }
+    if (in_front == 0) return true;  // all behind the camera
+    if (in_front < 8) return false;  // straddles the camera's plane
+    auto pixel = [](double x, int size) {
+      return static_cast<int>(std::floor(std::clamp(x + 0.5, -1.0, size + 1.0)));
+    };
+    const int u0 = std::max(pixel(u_min - kRectMarginPx, width), 0);
+    const int u1 = std::min(pixel(u_max + kRectMarginPx, width), width - 1);
+    const int v0 = std::max(pixel(v_min - kRectMarginPx, height), 0);
+    const int v1 = std::min(pixel(v_max + kRectMarginPx, height), height - 1);
+    return AllOn(u0, v0, u1, v1);  // empty (outside the image): not seen
+  }
+
+ private:
+  bool AllOnWide(int u0, int v0, int u1, int v1) const {
+    for (int v = v0; v <= v1; ++v) {
+      for (int u = u0; u <= u1; ++u) {
+        if (!((bits_[static_cast<std::size_t>(v) * words_ + (u >> 6)] >> (u & 63)) & 1)) {
+          return false;
+        }
+      }
+    }
+    return true;
+  }
+
+  cv::Rect roi_;
+  int words_ = 0;
+  std::vector<std::uint64_t> bits_;
+};
+
+// P * [X; 1] = (hx, hy, w) and the pixel (u, v) = (hx / w, hy / w) of `count` points (SoA),
+// each as Project computes it (the same operations in the same order, so the same values; the
+// loop is vectorised).
+void ProjectPoints(const Matrix34d& p, const double* __restrict x, const double* __restrict y,
+                   const double* __restrict z, std::size_t count, double* __restrict hx_out,
+                   double* __restrict hy_out, double* __restrict w, double* __restrict u,
+                   double* __restrict v) {
+  const double p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
+  const double p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
+  const double p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
+  for (std::size_t i = 0; i < count; ++i) {
+    const double hx = p00 * x[i] + p01 * y[i] + p02 * z[i] + p03;
+    const double hy = p10 * x[i] + p11 * y[i] + p12 * z[i] + p13;
+    const double hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
+    hx_out[i] = hx;
+    hy_out[i] = hy;
+    w[i] = hw;
+    u[i] = hx / hw;
+    v[i] = hy / hw;
+  }
+}
+
+}  // namespace
+
 std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
                                              std::optional<double> clip_below_z_mm,
                                              bool cull_views) const {
   const std::size_t n = edges.size();
   const int views = view_count();
   // Each edge with the part of it that can hold the crossing (all of it, or up to the grid's
-  // face for an edge leaving the grid, or up to the clip plane), sorted by the brick of its
-  // inside sample and the bricks by their block of 4 x 4 x 4 bricks: per view, a block the view
-  // cannot act on (grown by one voxel, it contains every segment of its bricks) skips its
-  // bricks, a brick skips its edges, and the edges of a brick lie together in memory.
+  // face for an edge leaving the grid, or up to the clip plane), grouped by its inside sample,
+  // the samples sorted by block of 16 voxels, brick, then voxel. Per view, a block the view
+  // cannot act on (its box grown by one voxel contains every segment of its edges) is skipped;
+  // in the others, a sample whose neighbourhood (as far as its segments can move in the image)
+  // is all on the silhouette skips its edges, then an edge whose end pixels' rectangle is all
+  // on the silhouette; the rest are walked.
   struct Item {
-    std::uint64_t key;  // block, then brick within the block
+    std::uint64_t key;  // block, brick within the block, voxel within the brick
     Eigen::Vector3i inside;
     std::int8_t axis;
     std::int8_t sign;
@@ -661,74 +820,237 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         item.t_max = to_plane;
       }
     }
-    const Eigen::Vector3i brick = edge.inside.cwiseMax(0) / kBrick;
+    const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
+    const Eigen::Vector3i brick = voxel / kBrick;
     const Eigen::Vector3i block = brick / 4;
     const Eigen::Vector3i local = brick - 4 * block;
+    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
     item.key =
         static_cast<std::uint64_t>(
             (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x())
-            << 6 |
-        static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4);
+            << 12 |
+        static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
+        static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
   }
   std::sort(items.begin(), items.end(), [](const Item& x, const Item& y) { return x.key < y.key; });
 
-  struct Group {
-    std::size_t begin, end;  // items (a brick) or bricks (a block)
+  struct Sample {  // an inside sample and its edges, items[first, first + count)
+    std::int16_t i, j, k;
+    std::uint8_t count;
+    std::uint8_t axes;  // bit a: an edge along axis a
+    std::uint32_t first;
+  };
+  struct Block {
+    std::size_t begin, end;  // bricks
     Eigen::Vector3d corners[8];
   };
-  auto grown_box = [&](const Eigen::Vector3i& lo_voxel, int size, Group* g) {
-    const Eigen::Vector3i lo = lo_voxel - Eigen::Vector3i::Ones();
-    const Eigen::Vector3i hi = lo_voxel + Eigen::Vector3i::Constant(size);
-    const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
-    const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
-    for (int c = 0; c < 8; ++c) {
-      g->corners[c] =
-          Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
+  // Points as structure of arrays (a sample's or a brick's centre).
+  struct Points {
+    std::vector<double> x, y, z;
+    void Add(const Eigen::Vector3d& c) {
+      x.push_back(c.x());
+      y.push_back(c.y());
+      z.push_back(c.z());
     }
   };
-  std::vector<Group> bricks;
-  std::vector<Group> blocks;
+  std::vector<Sample> samples;
+  Points sample_centre;
+  std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
+  Points brick_centre;
+  std::vector<Block> blocks;
   for (std::size_t i = 0; i < n;) {
     std::size_t j = i;
-    while (j < n && items[j].key == items[i].key) ++j;
-    const Eigen::Vector3i brick = items[i].inside.cwiseMax(0) / kBrick;
-    if (blocks.empty() || (items[bricks.back().begin].key >> 6) != (items[i].key >> 6)) {
-      Group& block = blocks.emplace_back();
-      block.begin = bricks.size();
-      grown_box(brick / 4 * (4 * kBrick), 4 * kBrick, &block);
+    std::uint8_t axes = 0;
+    for (; j < n && items[j].key == items[i].key; ++j) axes |= 1 << items[j].axis;
+    const Eigen::Vector3i voxel = items[i].inside.cwiseMax(0);
+    if (blocks.empty() || (items[samples.back().first].key >> 12) != (items[i].key >> 12)) {
+      Block& block = blocks.emplace_back();
+      block.begin = brick_start.size();
+      // The block's voxel centres grown by one voxel.
+      const Eigen::Vector3i lo = voxel / (4 * kBrick) * (4 * kBrick) - Eigen::Vector3i::Ones();
+      const Eigen::Vector3i hi = lo + Eigen::Vector3i::Constant(4 * kBrick + 1);
+      const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
+      const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
+      for (int c = 0; c < 8; ++c) {
+        block.corners[c] =
+            Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
+      }
     }
-    Group& g = bricks.emplace_back();
-    g.begin = i;
-    g.end = j;
-    grown_box(brick * kBrick, kBrick, &g);
-    blocks.back().end = bricks.size();
+    if (samples.empty() || (items[samples.back().first].key >> 6) != (items[i].key >> 6)) {
+      brick_start.push_back(samples.size());
+      // The middle of the brick's 4 x 4 x 4 voxel centres.
+      const Eigen::Vector3i lo = voxel / kBrick * kBrick;
+      brick_centre.Add(
+          0.5 * (grid_.Centre(lo.x(), lo.y(), lo.z()) +
+                 grid_.Centre(lo.x() + kBrick - 1, lo.y() + kBrick - 1, lo.z() + kBrick - 1)));
+      blocks.back().end = brick_start.size();
+    }
+    samples.push_back(Sample{static_cast<std::int16_t>(voxel.x()),
+                             static_cast<std::int16_t>(voxel.y()),
+                             static_cast<std::int16_t>(voxel.z()), static_cast<std::uint8_t>(j - i),
+                             axes, static_cast<std::uint32_t>(i)});
+    sample_centre.Add(grid_.Centre(voxel.x(), voxel.y(), voxel.z()));
     i = j;
   }
-
+  brick_start.push_back(samples.size());
+  std::size_t largest_block = 0;  // in samples
+  std::size_t most_bricks = 0;
+  for (const Block& block : blocks) {
+    largest_block = std::max(largest_block, brick_start[block.end] - brick_start[block.begin]);
+    most_bricks = std::max(most_bricks, block.end - block.begin);
+  }
+  // Per block and view: the bricks' projections, then the samples of the bricks the view may
+  // act on (gathered), their projections, and the samples to walk.
+  std::vector<double> brick_hx(most_bricks), brick_hy(most_bricks), brick_w(most_bricks);
+  std::vector<double> brick_u(most_bricks), brick_v(most_bricks);
+  Points gathered;
+  gathered.x.resize(largest_block);
+  gathered.y.resize(largest_block);
+  gathered.z.resize(largest_block);
+  std::vector<std::uint32_t> gathered_sample(largest_block);
+  std::vector<double> sample_hx(largest_block), sample_hy(largest_block), sample_w(largest_block);
+  std::vector<double> sample_u(largest_block), sample_v(largest_block);
+  std::vector<std::uint32_t> walk(largest_block);
   std::vector<double> t_item(n);
   for (std::size_t k = 0; k < n; ++k) t_item[k] = items[k].t_max + 1.0;
+  // Per sample, the longest part of its edges that can still hold a crossing (in voxels).
+  std::vector<double> sample_t(samples.size());
+  for (std::size_t s = 0; s < samples.size(); ++s) {
+    for (std::size_t k = samples[s].first; k < samples[s].first + samples[s].count; ++k) {
+      sample_t[s] = std::max(sample_t[s], items[k].t_max);
+    }
+  }
+  PackedMask packed;
   for (int v = 0; v < views; ++v) {
     const ViewData& view = views_[v];
-    const Sat sat = MakeSat(view);
-    for (const Group& block : blocks) {
-      if (cull_views && ClassifyHull(view, sat, block.corners, 8) == BlockClass::kUnaffected) {
-        continue;
+    const Matrix34d& p = view.pixel_from_object;
+    const cv::Mat& mask = view.mask01;
+    packed.Build(mask, view.roi);
+    // P * d for the six steps (axis, sign), as FirstExit computes it.
+    double step_h[3][2][3];
+    for (int axis = 0; axis < 3; ++axis) {
+      for (int s = 0; s < 2; ++s) {
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[axis] = (s == 0 ? -1 : 1) * grid_.voxel_mm;
+        for (int r = 0; r < 3; ++r) {
+          step_h[axis][s][r] = p(r, 0) * d.x() + p(r, 1) * d.y() + p(r, 2) * d.z();
+        }
       }
-      for (std::size_t b = block.begin; b < block.end; ++b) {
-        const Group& brick = bricks[b];
-        if (cull_views && ClassifyHull(view, sat, brick.corners, 8) == BlockClass::kUnaffected) {
+    }
+    // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
+    // (shifted by half a pixel) are all in the image and on the silhouette.
+    auto all_on_around = [&](double w, double u, double pv, double reach_u, double reach_v) {
+      const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
+      const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
+      return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
+             packed.AllOn(static_cast<int>(u_lo), static_cast<int>(v_lo), static_cast<int>(u_hi),
+                          static_cast<int>(v_hi));
+    };
+    for (const Block& block : blocks) {
+      // How far the segments can move in the image (px): per set of axes (bit a: axis a) for a
+      // sample's segments of one voxel, and for any point of a brick's box from the brick's
+      // middle (2.5 voxels along each axis, plus a margin for the rounding of the projections,
+      // ~1e-12 px).
+      double reach_u[8], reach_v[8];
+      std::fill(std::begin(reach_u), std::end(reach_u), std::numeric_limits<double>::infinity());
+      std::fill(std::begin(reach_v), std::end(reach_v), std::numeric_limits<double>::infinity());
+      double brick_reach_u = std::numeric_limits<double>::infinity();
+      double brick_reach_v = brick_reach_u;
+      if (cull_views) {
+        double projected[8][3];
+        for (int c = 0; c < 8; ++c) {
+          const Homogeneous h = Project(p, block.corners[c]);
+          projected[c][0] = h.x;
+          projected[c][1] = h.y;
+          projected[c][2] = h.w;
+        }
+        if (packed.AllOnOrUnseen(projected, mask.cols, mask.rows)) continue;
+        const StepBound bound = MaxStepPx(p, projected, grid_.voxel_mm);
+        for (int axes = 1; axes < 8; ++axes) {
+          double u = 0.0, w = 0.0;
+          for (int axis = 0; axis < 3; ++axis) {
+            if (axes & (1 << axis)) {
+              u = std::max(u, bound.u_px[axis]);
+              w = std::max(w, bound.v_px[axis]);
+            }
+          }
+          reach_u[axes] = u;
+          reach_v[axes] = w;
+        }
+        // From the middle to a corner of the brick's box: three legs of 2.5 voxels along the
+        // axes, each inside the block's box.
+        constexpr double kHalfBox = 0.5 * (kBrick + 1);
+        brick_reach_u = kHalfBox * (bound.u_px[0] + bound.u_px[1] + bound.u_px[2]) + 1e-6;
+        brick_reach_v = kHalfBox * (bound.v_px[0] + bound.v_px[1] + bound.v_px[2]) + 1e-6;
+      }
+      // Bricks: those whose box is all on the silhouette are left out.
+      const std::size_t bricks = block.end - block.begin;
+      ProjectPoints(p, &brick_centre.x[block.begin], &brick_centre.y[block.begin],
+                    &brick_centre.z[block.begin], bricks, brick_hx.data(), brick_hy.data(),
+                    brick_w.data(), brick_u.data(), brick_v.data());
+      std::size_t count = 0;
+      for (std::size_t b = 0; b < bricks; ++b) {
+        if (all_on_around(brick_w[b], brick_u[b], brick_v[b], brick_reach_u, brick_reach_v)) {
           continue;
         }
-        for (std::size_t k = brick.begin; k < brick.end; ++k) {
+        for (std::size_t s = brick_start[block.begin + b]; s < brick_start[block.begin + b + 1];
+             ++s) {
+          gathered.x[count] = sample_centre.x[s];
+          gathered.y[count] = sample_centre.y[s];
+          gathered.z[count] = sample_centre.z[s];
+          gathered_sample[count++] = static_cast<std::uint32_t>(s);
+        }
+      }
+      ProjectPoints(p, gathered.x.data(), gathered.y.data(), gathered.z.data(), count,
+                    sample_hx.data(), sample_hy.data(), sample_w.data(), sample_u.data(),
+                    sample_v.data());
+      // Samples: those whose segments all stay on the silhouette are left out (no branch on
+      // the outcome: it is hard to predict).
+      std::size_t walks = 0;
+      for (std::size_t g = 0; g < count; ++g) {
+        const std::uint32_t s = gathered_sample[g];
+        const std::uint8_t axes = samples[s].axes;
+        // The segments are as long as the part of them that can still hold the crossing.
+        const double t = sample_t[s];
+        const bool skip = all_on_around(sample_w[g], sample_u[g], sample_v[g],
+                                        reach_u[axes] * t + 1e-6, reach_v[axes] * t + 1e-6);
+        walk[walks] = static_cast<std::uint32_t>(g);
+        walks += skip ? 0 : 1;
+      }
+      for (std::size_t q = 0; q < walks; ++q) {
+        const std::size_t g = walk[q];
+        const Sample& sample = samples[gathered_sample[g]];
+        const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
+        const double hx = sample_hx[g];
+        const double hy = sample_hy[g];
+        const double hw = sample_w[g];
+        const int iu = static_cast<int>(std::floor(sample_u[g] + 0.5));
+        const int iv = static_cast<int>(std::floor(sample_v[g] + 0.5));
+        double longest = 0.0;
+        for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
           const Item& item = items[k];
-          const Eigen::Vector3d a = grid_.Centre(item.inside.x(), item.inside.y(), item.inside.z());
-          Eigen::Vector3d d = Eigen::Vector3d::Zero();
-          d[item.axis] = item.sign * grid_.voxel_mm;
           // Only the part before the nearest exit found so far can matter: the walk of the
           // shorter segment visits a prefix of the same cells (the same result where it
           // matters), and its end rectangle is smaller, so it more often ends at once.
-          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, std::min(item.t_max, t_item[k])));
+          const double t_max = std::min(item.t_max, t_item[k]);
+          longest = std::max(longest, t_max);
+          // FirstExit's first test, on the same values: the rectangle of the end pixels.
+          const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+          const double wb = hw + t_max * hd[2];
+          if (hw > 0.0 && wb > 0.0) {
+            const int end_u = static_cast<int>(std::floor((hx + t_max * hd[0]) / wb + 0.5));
+            const int end_v = static_cast<int>(std::floor((hy + t_max * hd[1]) / wb + 0.5));
+            const int u0 = std::max(std::min(iu, end_u), 0);
+            const int u1 = std::min(std::max(iu, end_u), mask.cols - 1);
+            const int v0 = std::max(std::min(iv, end_v), 0);
+            const int v1 = std::min(std::max(iv, end_v), mask.rows - 1);
+            if (packed.AllOn(u0, v0, u1, v1)) continue;
+          }
+          Eigen::Vector3d d = Eigen::Vector3d::Zero();
+          d[item.axis] = item.sign * grid_.voxel_mm;
+          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, t_max));
         }
+        sample_t[gathered_sample[g]] = longest;
       }
     }
   }

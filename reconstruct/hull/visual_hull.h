@@ -110,11 +110,13 @@ class VisualHull {
   // the continuous hull: per view, the edge's projection is walked pixel by pixel (the pixels'
   // borders are where the point test's nearest pixel changes) up to the first pixel off the
   // silhouette, found in closed form; the vertex takes the nearest of these over the views.
-  // Only the views whose silhouette boundary can cross the edge's projection are walked (the
-  // same summed-area test as carving, first on blocks of 16 voxels, then on bricks), so the
-  // result is that of walking every view. An edge leaving the grid (or reaching below
-  // clip_below_z_mm) is cut at the grid's face (the plane) unless the silhouettes cut it
-  // sooner, so the base on the plate is flat. The mesh is watertight, 2-manifold and
+  // Only the views whose silhouette boundary can cross the edge's projection are walked, so
+  // the result is that of walking every view: per view, a block of 16 voxels, a brick, then an
+  // inside sample is left out when the pixels around its projection, as far as its edges can
+  // move in the image (a bound from the projection's derivative), are all on the silhouette;
+  // then an edge whose end pixels' rectangle is all on the silhouette. An edge leaving the grid (or
+  // reaching below clip_below_z_mm) is cut at the grid's face (the plane) unless the silhouettes
+  // cut it sooner, so the base on the plate is flat. The mesh is watertight, 2-manifold and
   // outward-oriented (reconstruct/hull/marching_cubes.h). Empty when no voxel is occupied.
   Mesh ExtractSurface(const HullSurfaceOptions& options = {}) const;
 
@@ -138,11 +140,8 @@ class VisualHull {
   // How `view` acts on the voxel centres lo..hi (inclusive).
   BlockClass Classify(const ViewData& view, const Sat& sat, const Eigen::Vector3i& lo,
                       const Eigen::Vector3i& hi) const;
-  // How `view` acts on the convex hull of `points` (kUnaffected: on none of its points);
-  // count <= 8.
-  static BlockClass ClassifyHull(const ViewData& view, const Sat& sat,
-                                 const Eigen::Vector3d* points, int count);
-  // ClassifyHull on the points' projections P * [X; 1] (x, y, w).
+  // How `view` acts on the convex hull of points given by their projections P * [X; 1]
+  // (x, y, w); count <= 8.
   static BlockClass ClassifyProjected(const ViewData& view, const Sat& sat,
                                       const double (*projected)[3], int count);
   // Where every cut edge first leaves the hull (see ExtractSurface).
