@@ -96,6 +96,53 @@ class DepthCells {
     float& cell = depth_[static_cast<std::size_t>(r) * cols_ + c];
     cell = std::min(cell, depth);
   }
+  // Splat of every point i (coordinates x, y, z) whose normal (nx, ny, nz) faces `toward`
+  // within `margin` (n . toward >= -margin) and that lies in front of the camera, at the pixel
+  // p projects it to, with the depth depth_row . [X; 1]. The projections of all points are
+  // computed first, in one vectorised loop; `index` and `depth` are scratch space.
+  void SplatFacing(const Eigen::Matrix<float, 3, 4>& p, const Eigen::Vector4f& depth_row,
+                   const Eigen::Vector3f& toward, float margin, const float* __restrict x,
+                   const float* __restrict y, const float* __restrict z, const float* __restrict nx,
+                   const float* __restrict ny, const float* __restrict nz, int count,
+                   std::vector<int>* index, std::vector<float>* depth) {
+    index->resize(count);
+    depth->resize(count);
+    int* __restrict cell_of = index->data();
+    float* __restrict depth_of = depth->data();
+    const float p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
+    const float p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
+    const float p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
+    const float r0 = depth_row[0], r1 = depth_row[1], r2 = depth_row[2], r3 = depth_row[3];
+    const float dx = toward.x(), dy = toward.y(), dz = toward.z();
+    const float all_cols = static_cast<float>(all_cols_);
+    const float all_rows = static_cast<float>(all_rows_);
+    for (int i = 0; i < count; ++i) {
+      const float facing = nx[i] * dx + ny[i] * dy + nz[i] * dz;
+      const float hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
+      const float inv = 1.0f / hw;
+      const float u = (p00 * x[i] + p01 * y[i] + p02 * z[i] + p03) * inv;
+      const float v = (p10 * x[i] + p11 * y[i] + p12 * z[i] + p13) * inv;
+      // Cell(): (px + 0.5) / cell_px, its integer part when in [0, n).
+      const float cu = (u + 0.5f) * inv_cell_;
+      const float cv = (v + 0.5f) * inv_cell_;
+      // Bitwise tests and clamps (NaN to 0) rather than branches, so the loop vectorises.
+      const int seen = static_cast<int>(facing >= -margin) & static_cast<int>(hw > 0.0f) &
+                       static_cast<int>(cu >= 0.0f) & static_cast<int>(cv >= 0.0f) &
+                       static_cast<int>(cu < all_cols) & static_cast<int>(cv < all_rows);
+      const int c = static_cast<int>(std::min(std::max(0.0f, cu), all_cols)) - c0_;
+      const int r = static_cast<int>(std::min(std::max(0.0f, cv), all_rows)) - r0_;
+      const int in_window = seen & static_cast<int>(c >= 0) & static_cast<int>(r >= 0) &
+                            static_cast<int>(c < cols_) & static_cast<int>(r < rows_);
+      cell_of[i] = in_window != 0 ? r * cols_ + c : -1;
+      depth_of[i] = r0 * x[i] + r1 * y[i] + r2 * z[i] + r3;
+    }
+    for (int i = 0; i < count; ++i) {
+      if (cell_of[i] >= 0) {
+        float& cell = depth_[static_cast<std::size_t>(cell_of[i])];
+        cell = std::min(cell, depth_of[i]);
+      }
+    }
+  }
   float At(float u, float v) const {
     const int c = std::clamp(Cell(u, all_cols_), 0, all_cols_ - 1) - c0_;
     const int r = std::clamp(Cell(v, all_rows_), 0, all_rows_ - 1) - r0_;
@@ -467,6 +514,8 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
                               -2.0f);  // -2: unseen
   std::vector<Eigen::Vector3f> color_sum(options.vertex_colors ? nv : 0, Eigen::Vector3f::Zero());
   std::vector<float> weight_sum(options.vertex_colors ? nv : 0, 0.0f);
+  std::vector<int> splat_cell;  // scratch for the splats
+  std::vector<float> splat_depth;
   for (int k = 0; k < nviews; ++k) {
     if (images[k].empty()) continue;
     ++stats.views_used;
@@ -511,24 +560,9 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     }
     DepthCells cells(g.width, g.height, cell_px, u_min, v_min, u_max, v_max);
     const float margin = view_margin[k];
-    // Every vertex facing the camera (within the margin) and in front of it is splatted; the
-    // facing test comes first, so the others cost three products.
-    {
-      const Eigen::Matrix<float, 3, 4>& p = g.p;
-      const Eigen::Vector4f& r = g.depth_row;
-      const float dx = d.x(), dy = d.y(), dz = d.z();
-      for (int i = 0; i < nv; ++i) {
-        const float facing = vnx[i] * dx + vny[i] * dy + vnz[i] * dz;
-        if (!(facing >= -margin)) continue;
-        const float x = vx[i], y = vy[i], z = vz[i];
-        const float hw = p(2, 0) * x + p(2, 1) * y + p(2, 2) * z + p(2, 3);
-        if (!(hw > 0.0f)) continue;
-        const float inv = 1.0f / hw;
-        cells.Splat((p(0, 0) * x + p(0, 1) * y + p(0, 2) * z + p(0, 3)) * inv,
-                    (p(1, 0) * x + p(1, 1) * y + p(1, 2) * z + p(1, 3)) * inv,
-                    r[0] * x + r[1] * y + r[2] * z + r[3]);
-      }
-    }
+    // Every vertex facing the camera (within the margin) and in front of it is splatted.
+    cells.SplatFacing(g.p, g.depth_row, d, margin, vx.data(), vy.data(), vz.data(), vnx.data(),
+                      vny.data(), vnz.data(), nv, &splat_cell, &splat_depth);
     const float cell_mm = cell_px * mm_per_px;
     auto visible = [&](const Eigen::Vector3f& x, float cos_angle, float* u, float* v) {
       if (!g.Project(x, u, v) || !g.InImage(*u, *v)) return false;
