@@ -276,24 +276,26 @@ Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
   }
   header += fmt::format("element face {}\n", mesh.faces.size());
   header += "property list uchar int vertex_indices\nend_header\n";
-  file.Append(header);
+  internal::TextOut out(&file);  // binary records, built in place
+  out.Put(header);
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const Eigen::Vector3f& v = mesh.vertices[i];
-    file.AppendRaw(v.x());
-    file.AppendRaw(v.y());
-    file.AppendRaw(v.z());
+    char* p = out.Room(15);
+    std::memcpy(p, mesh.vertices[i].data(), 12);
+    p += 12;
     if (colors) {
-      file.AppendRaw(mesh.colors[i][0]);
-      file.AppendRaw(mesh.colors[i][1]);
-      file.AppendRaw(mesh.colors[i][2]);
+      std::memcpy(p, mesh.colors[i].data(), 3);
+      p += 3;
     }
+    out.End(p);
   }
   for (const Eigen::Vector3i& f : mesh.faces) {
-    file.AppendRaw(std::uint8_t{3});
-    file.AppendRaw(std::int32_t{f[0]});
-    file.AppendRaw(std::int32_t{f[1]});
-    file.AppendRaw(std::int32_t{f[2]});
+    char* p = out.Room(13);
+    *p = 3;
+    static_assert(sizeof(Eigen::Vector3i) == 12, "three packed int32 indices");
+    std::memcpy(p + 1, f.data(), 12);
+    out.End(p + 13);
   }
+  out.Flush();
   return file.Commit();
 }
 

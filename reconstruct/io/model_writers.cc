@@ -54,11 +54,6 @@ void Pad4(std::string* bytes, char fill) {
   }
 }
 
-template <class T>
-void AppendBytes(std::string* out, const T* data, std::size_t count) {
-  out->append(reinterpret_cast<const char*>(data), count * sizeof(T));
-}
-
 }  // namespace
 
 namespace internal {
@@ -248,72 +243,42 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   }
   const std::size_t n = source.size();
 
-  std::string bin;
+  std::string encoded;
+  if (textured && png == nullptr) {
+    Expected<std::string> bytes = internal::EncodePng(mesh.texture);
+    if (!bytes) {
+      return std::unexpected(bytes.error());
+    }
+    encoded = std::move(*bytes);
+    png = &encoded;
+  }
+  // The binary chunk's layout (views 4-byte aligned), known before any of it is written.
   struct View {
     std::size_t offset, length;
     int target;  // 0: none
   };
   std::vector<View> views;
-  auto add_view = [&](auto fill, int target) {
-    const std::size_t offset = bin.size();
-    fill();
-    views.push_back({offset, bin.size() - offset, target});
-    Pad4(&bin, '\0');
+  std::size_t bin_size = 0;
+  auto add_view = [&](std::size_t length, int target) {
+    views.push_back({bin_size, length, target});
+    bin_size += (length + 3) / 4 * 4;
     return static_cast<int>(views.size() - 1);
   };
-  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
-  Eigen::Vector3f hi = -lo;
-  const int position_view = add_view(
-      [&] {
-        for (int v : source) {
-          const Eigen::Vector3f& p = mesh.vertices[v];
-          lo = lo.cwiseMin(p);
-          hi = hi.cwiseMax(p);
-          AppendBytes(&bin, p.data(), 3);
-        }
-      },
-      34962);
-  const int normal_view = add_view(
-      [&] {
-        for (int v : source) {
-          AppendBytes(&bin, vertex_normals[v].data(), 3);
-        }
-      },
-      34962);
+  const int position_view = add_view(n * 12, 34962);
+  const int normal_view = add_view(n * 12, 34962);
   int extra_view = -1;
   if (textured) {
-    extra_view = add_view(
-        [&] {
-          for (int t : uv_of) {
-            AppendBytes(&bin, mesh.uvs[t].data(), 2);
-          }
-        },
-        34962);
+    extra_view = add_view(n * 8, 34962);
   } else if (colors) {
-    extra_view = add_view(
-        [&] {
-          for (int v : source) {
-            const std::uint8_t rgba[4] = {mesh.colors[v][0], mesh.colors[v][1], mesh.colors[v][2],
-                                          255};
-            AppendBytes(&bin, rgba, 4);
-          }
-        },
-        34962);
+    extra_view = add_view(n * 4, 34962);
   }
-  const int index_view =
-      add_view([&] { AppendBytes(&bin, indices.data(), indices.size()); }, 34963);
-  int image_view = -1;
-  if (textured) {
-    std::string encoded;
-    if (png == nullptr) {
-      Expected<std::string> bytes = internal::EncodePng(mesh.texture);
-      if (!bytes) {
-        return std::unexpected(bytes.error());
-      }
-      encoded = std::move(*bytes);
-      png = &encoded;
-    }
-    image_view = add_view([&] { bin += *png; }, 0);
+  const int index_view = add_view(indices.size() * 4, 34963);
+  const int image_view = textured ? add_view(png->size(), 0) : -1;
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f hi = -lo;
+  for (int v : source) {
+    lo = lo.cwiseMin(mesh.vertices[v]);
+    hi = hi.cwiseMax(mesh.vertices[v]);
   }
 
   std::string json = R"({"asset":{"version":"2.0","generator":"revolve"},"scene":0,)";
@@ -375,7 +340,7 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
       if (views[i].target != 0) json += fmt::format(R"(,"target":{})", views[i].target);
       json += '}';
     }
-    json += fmt::format(R"(],"buffers":[{{"byteLength":{}}}]}})", bin.size());
+    json += fmt::format(R"(],"buffers":[{{"byteLength":{}}}]}})", bin_size);
   }
   Pad4(&json, ' ');
 
@@ -383,20 +348,55 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   if (Expected<void> opened = file.Open(); !opened) {
     return opened;
   }
-  const bool has_bin = !bin.empty();
-  const std::uint32_t total =
-      static_cast<std::uint32_t>(12 + 8 + json.size() + (has_bin ? 8 + bin.size() : 0));
-  file.AppendRaw(std::uint32_t{0x46546C67});  // "glTF"
-  file.AppendRaw(std::uint32_t{2});
-  file.AppendRaw(total);
-  file.AppendRaw(static_cast<std::uint32_t>(json.size()));
-  file.AppendRaw(std::uint32_t{0x4E4F534A});  // "JSON"
-  file.Append(json);
+  const bool has_bin = bin_size > 0;
+  std::string header;
+  auto add_word = [&header](std::uint32_t word) {
+    header.append(reinterpret_cast<const char*>(&word), 4);
+  };
+  add_word(0x46546C67);  // "glTF"
+  add_word(2);
+  add_word(static_cast<std::uint32_t>(12 + 8 + json.size() + (has_bin ? 8 + bin_size : 0)));
+  add_word(static_cast<std::uint32_t>(json.size()));
+  add_word(0x4E4F534A);  // "JSON"
+  header += json;
   if (has_bin) {
-    file.AppendRaw(static_cast<std::uint32_t>(bin.size()));
-    file.AppendRaw(std::uint32_t{0x004E4942});  // "BIN\0"
-    file.Append(bin);
+    add_word(static_cast<std::uint32_t>(bin_size));
+    add_word(0x004E4942);  // "BIN\0"
   }
+  internal::TextOut out(&file);  // the binary chunk, built in place
+  out.Put(header);
+  if (has_bin) {
+    for (int v : source) {
+      char* p = out.Room(12);
+      std::memcpy(p, mesh.vertices[v].data(), 12);
+      out.End(p + 12);
+    }
+    for (int v : source) {
+      char* p = out.Room(12);
+      std::memcpy(p, vertex_normals[v].data(), 12);
+      out.End(p + 12);
+    }
+    if (textured) {
+      for (int t : uv_of) {
+        char* p = out.Room(8);
+        std::memcpy(p, mesh.uvs[t].data(), 8);
+        out.End(p + 8);
+      }
+    } else if (colors) {
+      for (int v : source) {
+        char* p = out.Room(4);
+        std::memcpy(p, mesh.colors[v].data(), 3);
+        p[3] = static_cast<char>(255);
+        out.End(p + 4);
+      }
+    }
+    out.Put(std::string_view(reinterpret_cast<const char*>(indices.data()), indices.size() * 4));
+    if (textured) {
+      out.Put(*png);
+      out.Put(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
+    }
+  }
+  out.Flush();
   return file.Commit();
 }
 
@@ -433,17 +433,22 @@ Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
   }
   std::string header = "revolve binary STL: object frame, millimetres, z up";
   header.resize(80, ' ');
-  file.Append(header);
-  file.AppendRaw(static_cast<std::uint32_t>(mesh.faces.size()));
-  std::string record(50, '\0');
+  const auto count = static_cast<std::uint32_t>(mesh.faces.size());
+  header.append(reinterpret_cast<const char*>(&count), 4);
+  internal::TextOut out(&file);  // binary records, built in place
+  out.Put(header);
   for (const Eigen::Vector3i& f : mesh.faces) {
+    char* p = out.Room(50);
     const Eigen::Vector3f normal = FaceNormal(mesh, f);
-    std::memcpy(record.data(), normal.data(), 12);
+    std::memcpy(p, normal.data(), 12);
     for (int c = 0; c < 3; ++c) {
-      std::memcpy(record.data() + 12 + 12 * c, mesh.vertices[f[c]].data(), 12);
+      std::memcpy(p + 12 + 12 * c, mesh.vertices[f[c]].data(), 12);
     }
-    file.Append(record);  // the last 2 bytes (attribute count) stay 0
+    p[48] = 0;  // attribute byte count
+    p[49] = 0;
+    out.End(p + 50);
   }
+  out.Flush();
   return file.Commit();
 }
 
