@@ -143,25 +143,25 @@ constexpr char kDigitPairs[] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-// Decimal digits of `value`, most significant first.
+// Decimal digits of `value`, most significant first, written in place (no copy of a
+// variable length).
 char* WriteUnsigned(char* out, unsigned long long value) {
-  char digits[24];
-  int n = sizeof(digits);
+  int count = 1;
+  for (unsigned long long bound = 10; count < 20 && value >= bound; bound *= 10) ++count;
+  char* const end = out + count;
+  char* p = end;
   while (value >= 100) {
     const auto pair = static_cast<std::size_t>(value % 100);
     value /= 100;
-    n -= 2;
-    std::memcpy(digits + n, kDigitPairs + 2 * pair, 2);
+    p -= 2;
+    std::memcpy(p, kDigitPairs + 2 * pair, 2);
   }
   if (value >= 10) {
-    n -= 2;
-    std::memcpy(digits + n, kDigitPairs + 2 * value, 2);
+    std::memcpy(p - 2, kDigitPairs + 2 * value, 2);
   } else {
-    digits[--n] = static_cast<char>('0' + value);
+    p[-1] = static_cast<char>('0' + value);
   }
-  const int count = static_cast<int>(sizeof(digits)) - n;
-  std::memcpy(out, digits + n, static_cast<std::size_t>(count));
-  return out + count;
+  return end;
 }
 
 // WriteFixed with the number of decimals known at compile time (constant divisors).
