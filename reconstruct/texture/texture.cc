@@ -143,6 +143,12 @@ class DepthCells {
       }
     }
   }
+  // Whether a point projecting into [u_min, u_max] x [v_min, v_max] (finite) can land in the
+  // window (widened by a pixel against the rounding of projections).
+  bool Overlaps(float u_min, float v_min, float u_max, float v_max) const {
+    return Cell(u_max + 1.0f, all_cols_) >= c0_ && Cell(u_min - 1.0f, all_cols_) < c0_ + cols_ &&
+           Cell(v_max + 1.0f, all_rows_) >= r0_ && Cell(v_min - 1.0f, all_rows_) < r0_ + rows_;
+  }
   float At(float u, float v) const {
     const int c = std::clamp(Cell(u, all_cols_), 0, all_cols_ - 1) - c0_;
     const int r = std::clamp(Cell(v, all_rows_), 0, all_rows_ - 1) - r0_;
@@ -471,19 +477,77 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   const std::vector<Candidates> face_candidates =
       options.atlas ? rank(nf, snx.data(), sny.data(), snz.data()) : std::vector<Candidates>();
-  // Vertices and their normals as arrays.
+  // The vertices and their normals as arrays, grouped in clusters by a coarse grid over their
+  // box, each cluster with its box and normal cone: a view splats only the clusters that can
+  // face it and project near its candidates.
+  struct Cluster {
+    int begin = 0, end = 0;  // in the arrays below
+    Eigen::Vector3f lo, hi;
+    Eigen::Vector3f axis = Eigen::Vector3f::Zero();
+    float half_angle = static_cast<float>(M_PI);  // pi: no test
+  };
+  constexpr int kClusterSide = 8;
+  std::vector<Cluster> clusters(kClusterSide * kClusterSide * kClusterSide);
   std::vector<float> vx(nv), vy(nv), vz(nv), vnx(nv), vny(nv), vnz(nv);
-  for (int i = 0; i < nv; ++i) {
-    vx[i] = vertices[i].x();
-    vy[i] = vertices[i].y();
-    vz[i] = vertices[i].z();
-    vnx[i] = vertex_normal[i].x();
-    vny[i] = vertex_normal[i].y();
-    vnz[i] = vertex_normal[i].z();
+  {
+    const Eigen::Vector3f scale = kClusterSide * (box_hi - box_lo).cwiseMax(1e-6f).cwiseInverse();
+    std::vector<int> cluster_of(nv);
+    std::vector<int> start(clusters.size() + 1, 0);
+    for (int i = 0; i < nv; ++i) {
+      int cell[3];
+      for (int a = 0; a < 3; ++a) {
+        const float x = (vertices[i][a] - box_lo[a]) * scale[a];
+        cell[a] = std::clamp(static_cast<int>(x >= 0.0f ? x : 0.0f), 0, kClusterSide - 1);
+      }
+      cluster_of[i] = (cell[2] * kClusterSide + cell[1]) * kClusterSide + cell[0];
+      ++start[cluster_of[i] + 1];
+    }
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (int i = 0; i < nv; ++i) {
+      const int at = fill[cluster_of[i]]++;
+      vx[at] = vertices[i].x();
+      vy[at] = vertices[i].y();
+      vz[at] = vertices[i].z();
+      vnx[at] = vertex_normal[i].x();
+      vny[at] = vertex_normal[i].y();
+      vnz[at] = vertex_normal[i].z();
+    }
+    for (std::size_t c = 0; c < clusters.size(); ++c) {
+      Cluster& cluster = clusters[c];
+      cluster.begin = start[c];
+      cluster.end = start[c + 1];
+      if (cluster.begin == cluster.end) continue;
+      cluster.lo = cluster.hi =
+          Eigen::Vector3f(vx[cluster.begin], vy[cluster.begin], vz[cluster.begin]);
+      bool unit_normals = true;
+      for (int i = cluster.begin; i < cluster.end; ++i) {
+        const Eigen::Vector3f x(vx[i], vy[i], vz[i]);
+        cluster.lo = cluster.lo.cwiseMin(x);
+        cluster.hi = cluster.hi.cwiseMax(x);
+        const Eigen::Vector3f n(vnx[i], vny[i], vnz[i]);
+        unit_normals = unit_normals && n.squaredNorm() > 0.5f;
+        cluster.axis += n;
+      }
+      if (!unit_normals || !(cluster.axis.norm() > 1e-3f)) continue;  // no cone
+      cluster.axis.normalize();
+      float min_cos = 1.0f;
+      for (int i = cluster.begin; i < cluster.end; ++i) {
+        min_cos = std::min(min_cos, cluster.axis.dot(Eigen::Vector3f(vnx[i], vny[i], vnz[i])));
+      }
+      cluster.half_angle = std::acos(std::clamp(min_cos, -1.0f, 1.0f));
+    }
   }
   std::vector<Candidates> vertex_candidates;
   if (options.vertex_colors) {
-    vertex_candidates = rank(nv, vnx.data(), vny.data(), vnz.data());
+    // Ranked per vertex in the mesh's order (the arrays above are in cluster order).
+    std::vector<float> nx(nv), ny(nv), nz(nv);
+    for (int i = 0; i < nv; ++i) {
+      nx[i] = vertex_normal[i].x();
+      ny[i] = vertex_normal[i].y();
+      nz[i] = vertex_normal[i].z();
+    }
+    vertex_candidates = rank(nv, nx.data(), ny.data(), nz.data());
   }
   // Per view, the faces and vertices it is a candidate for (slot in the low bits).
   auto by_view = [&](const std::vector<Candidates>& candidates) {
@@ -516,6 +580,14 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   std::vector<float> weight_sum(options.vertex_colors ? nv : 0, 0.0f);
   std::vector<int> splat_cell;  // scratch for the splats
   std::vector<float> splat_depth;
+  struct Pending {  // a candidate to test in a view
+    int index;      // face or vertex
+    int slot;       // the face's candidate slot
+    float u, v;     // its pixel
+    float cos_angle;
+  };
+  std::vector<Pending> pending_faces;
+  std::vector<Pending> pending_vertices;
   for (int k = 0; k < nviews; ++k) {
     if (images[k].empty()) continue;
     ++stats.views_used;
@@ -532,68 +604,90 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     }
     const int cell_px =
         std::clamp(static_cast<int>(std::ceil(1.5f * mean_edge_mm / mm_per_px)), 1, 16);
-    // The window: the projection of the mesh's bounding box (the whole image when part of the
-    // box is behind the camera).
-    float u_min = -1.0f, v_min = -1.0f;
-    float u_max = static_cast<float>(g.width), v_max = static_cast<float>(g.height);
-    {
-      float w_u_min = std::numeric_limits<float>::infinity(), w_v_min = w_u_min;
-      float w_u_max = -w_u_min, w_v_max = -w_u_min;
-      bool all_in_front = true;
-      for (int c = 0; c < 8 && all_in_front; ++c) {
-        const Eigen::Vector3f corner(c & 1 ? box_hi.x() : box_lo.x(),
-                                     c & 2 ? box_hi.y() : box_lo.y(),
-                                     c & 4 ? box_hi.z() : box_lo.z());
-        float u = 0.0f, v = 0.0f;
-        all_in_front = g.Project(corner, &u, &v);
-        w_u_min = std::min(w_u_min, u);
-        w_u_max = std::max(w_u_max, u);
-        w_v_min = std::min(w_v_min, v);
-        w_v_max = std::max(w_v_max, v);
-      }
-      if (all_in_front) {
-        u_min = w_u_min;
-        v_min = w_v_min;
-        u_max = w_u_max;
-        v_max = w_v_max;
-      }
-    }
-    DepthCells cells(g.width, g.height, cell_px, u_min, v_min, u_max, v_max);
-    const float margin = view_margin[k];
-    // Every vertex facing the camera (within the margin) and in front of it is splatted.
-    cells.SplatFacing(g.p, g.depth_row, d, margin, vx.data(), vy.data(), vz.data(), vnx.data(),
-                      vny.data(), vnz.data(), nv, &splat_cell, &splat_depth);
-    const float cell_mm = cell_px * mm_per_px;
-    auto visible = [&](const Eigen::Vector3f& x, float cos_angle, float* u, float* v) {
-      if (!g.Project(x, u, v) || !g.InImage(*u, *v)) return false;
-      const float tan_angle =
-          std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - cos_angle * cos_angle)) /
-                                std::max(cos_angle, 1e-3f));
-      const float tolerance = 2.0f * mean_edge_mm + 4.0f * cell_mm * tan_angle;
-      return g.Depth(x) <= cells.At(*u, *v) + tolerance;
+    // The candidates this view may colour (facing it within max_angle_deg, in the image), their
+    // pixels, and the window of depth cells they need.
+    pending_faces.clear();
+    pending_vertices.clear();
+    float u_min = std::numeric_limits<float>::infinity(), v_min = u_min;
+    float u_max = -u_min, v_max = -u_min;
+    auto add_pending = [&](std::vector<Pending>* list, int index, int slot,
+                           const Eigen::Vector3f& x, float cos_angle) {
+      float u, v;
+      if (cos_angle < cos_min || !g.Project(x, &u, &v) || !g.InImage(u, v)) return;
+      list->push_back(Pending{index, slot, u, v, cos_angle});
+      u_min = std::min(u_min, u);
+      u_max = std::max(u_max, u);
+      v_min = std::min(v_min, v);
+      v_max = std::max(v_max, v);
     };
     for (int e = face_start[k]; e < face_start[k + 1]; ++e) {
       const int i = static_cast<int>(face_entries[e] / kCandidates);
       const int slot = static_cast<int>(face_entries[e] % kCandidates);
       const Eigen::Vector3f to_camera = g.ToCamera(centroid[i]);
       if (Eigen::Vector3f(fnx[i], fny[i], fnz[i]).dot(to_camera) <= 0.0f) continue;
-      const float c = Eigen::Vector3f(snx[i], sny[i], snz[i]).dot(to_camera);
-      float u, v;
-      if (c < cos_min || !visible(centroid[i], c, &u, &v)) continue;
-      face_cos[static_cast<std::size_t>(i) * kCandidates + slot] = c;
+      add_pending(&pending_faces, i, slot, centroid[i],
+                  Eigen::Vector3f(snx[i], sny[i], snz[i]).dot(to_camera));
     }
     if (options.vertex_colors) {
       for (int e = vertex_lists.first[k]; e < vertex_lists.first[k + 1]; ++e) {
         const int vi = static_cast<int>(vertex_lists.second[e] / kCandidates);
-        const float c = vertex_normal[vi].dot(g.ToCamera(vertices[vi]));
-        float u, v;
-        if (c < cos_min || !visible(vertices[vi], c, &u, &v)) continue;
-        const float c2 = c * c;
-        const float c4 = c2 * c2;
-        const float w = c4 * c4;  // cos^8
-        color_sum[vi] += w * SampleBilinear(image, u, v);
-        weight_sum[vi] += w;
+        add_pending(&pending_vertices, vi, 0, vertices[vi],
+                    vertex_normal[vi].dot(g.ToCamera(vertices[vi])));
       }
+    }
+    if (pending_faces.empty() && pending_vertices.empty()) continue;
+    DepthCells cells(g.width, g.height, cell_px, u_min, v_min, u_max, v_max);
+    // Every vertex facing the camera (within the margin) and in front of it is splatted; a
+    // cluster whose normals all face away, or whose box projects away from the window, holds
+    // none that lands in the window.
+    const float margin = view_margin[k];
+    const float facing_limit = std::acos(std::clamp(-margin, -1.0f, 1.0f)) + 1e-3f;
+    for (const Cluster& cluster : clusters) {
+      if (cluster.begin == cluster.end) continue;
+      if (cluster.half_angle < static_cast<float>(M_PI) &&
+          std::acos(std::clamp(cluster.axis.dot(d), -1.0f, 1.0f)) - cluster.half_angle >
+              facing_limit) {
+        continue;
+      }
+      float c_u_min = std::numeric_limits<float>::infinity(), c_v_min = c_u_min;
+      float c_u_max = -c_u_min, c_v_max = -c_u_min;
+      bool in_front = true;
+      for (int c = 0; c < 8 && in_front; ++c) {
+        const Eigen::Vector3f corner(c & 1 ? cluster.hi.x() : cluster.lo.x(),
+                                     c & 2 ? cluster.hi.y() : cluster.lo.y(),
+                                     c & 4 ? cluster.hi.z() : cluster.lo.z());
+        float u = 0.0f, v = 0.0f;
+        in_front = g.Project(corner, &u, &v) && std::isfinite(u) && std::isfinite(v);
+        c_u_min = std::min(c_u_min, u);
+        c_u_max = std::max(c_u_max, u);
+        c_v_min = std::min(c_v_min, v);
+        c_v_max = std::max(c_v_max, v);
+      }
+      if (in_front && !cells.Overlaps(c_u_min, c_v_min, c_u_max, c_v_max)) continue;
+      const int count = cluster.end - cluster.begin;
+      cells.SplatFacing(g.p, g.depth_row, d, margin, &vx[cluster.begin], &vy[cluster.begin],
+                        &vz[cluster.begin], &vnx[cluster.begin], &vny[cluster.begin],
+                        &vnz[cluster.begin], count, &splat_cell, &splat_depth);
+    }
+    const float cell_mm = cell_px * mm_per_px;
+    auto visible = [&](const Eigen::Vector3f& x, const Pending& p) {
+      const float tan_angle =
+          std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - p.cos_angle * p.cos_angle)) /
+                                std::max(p.cos_angle, 1e-3f));
+      const float tolerance = 2.0f * mean_edge_mm + 4.0f * cell_mm * tan_angle;
+      return g.Depth(x) <= cells.At(p.u, p.v) + tolerance;
+    };
+    for (const Pending& p : pending_faces) {
+      if (!visible(centroid[p.index], p)) continue;
+      face_cos[static_cast<std::size_t>(p.index) * kCandidates + p.slot] = p.cos_angle;
+    }
+    for (const Pending& p : pending_vertices) {
+      if (!visible(vertices[p.index], p)) continue;
+      const float c2 = p.cos_angle * p.cos_angle;
+      const float c4 = c2 * c2;
+      const float w = c4 * c4;  // cos^8
+      color_sum[p.index] += w * SampleBilinear(image, p.u, p.v);
+      weight_sum[p.index] += w;
     }
   }
 
