@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -832,7 +833,21 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
         static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
   }
-  std::sort(items.begin(), items.end(), [](const Item& x, const Item& y) { return x.key < y.key; });
+  {
+    // By block (counting sort), then within each block (a few hundred edges) by key.
+    std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
+    for (const Item& item : items) ++start[(item.key >> 12) + 1];
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    std::vector<Item> sorted(n);
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (const Item& item : items) sorted[fill[item.key >> 12]++] = item;
+    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+      std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(start[b]),
+                sorted.begin() + static_cast<std::ptrdiff_t>(start[b + 1]),
+                [](const Item& x, const Item& y) { return x.key < y.key; });
+    }
+    items.swap(sorted);
+  }
 
   struct Sample {  // an inside sample and its edges, items[first, first + count)
     std::int16_t i, j, k;
