@@ -584,12 +584,18 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
       return t_max + 1.0;
     }
   }
+  return WalkCells(view, ha.x, ha.y, ha.w, hd.data(), t_max, iu, iv, end_u, end_v);
+}
+
+double VisualHull::WalkCells(const ViewData& view, double hx, double hy, double hw,
+                             const double* hd, double t_max, int iu, int iv, int end_u, int end_v) {
+  const cv::Mat& mask = view.mask01;
   const int su = end_u > iu ? 1 : (end_u < iu ? -1 : 0);
   const int sv = end_v > iv ? 1 : (end_v < iv ? -1 : 0);
   // Parameter where the projection reaches the line u = c (or v = c): x(t) - c w(t) = 0.
   auto cross = [&](double c, double x0, double dx) {
-    const double denominator = dx - c * hd.z();
-    return denominator != 0.0 ? (c * ha.w - x0) / denominator : t_max + 1.0;
+    const double denominator = dx - c * hd[2];
+    return denominator != 0.0 ? (c * hw - x0) / denominator : t_max + 1.0;
   };
   double t = 0.0;
   const int steps = std::abs(end_u - iu) + std::abs(end_v - iv);
@@ -601,8 +607,8 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
     if (step == steps) {
       break;
     }
-    const double tu = su != 0 && iu != end_u ? cross(iu + 0.5 * su, ha.x, hd.x()) : t_max + 1.0;
-    const double tv = sv != 0 && iv != end_v ? cross(iv + 0.5 * sv, ha.y, hd.y()) : t_max + 1.0;
+    const double tu = su != 0 && iu != end_u ? cross(iu + 0.5 * su, hx, hd[0]) : t_max + 1.0;
+    const double tv = sv != 0 && iv != end_v ? cross(iv + 0.5 * sv, hy, hd[1]) : t_max + 1.0;
     if (tu <= tv) {
       iu += su;
       t = std::max(t, tu);
@@ -1060,6 +1066,9 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
             const int v0 = std::max(std::min(iv, end_v), 0);
             const int v1 = std::min(std::max(iv, end_v), mask.rows - 1);
             if (packed.AllOn(u0, v0, u1, v1)) continue;
+            t_item[k] =
+                std::min(t_item[k], WalkCells(view, hx, hy, hw, hd, t_max, iu, iv, end_u, end_v));
+            continue;
           }
           Eigen::Vector3d d = Eigen::Vector3d::Zero();
           d[item.axis] = item.sign * grid_.voxel_mm;

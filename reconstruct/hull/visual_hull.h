@@ -151,6 +151,10 @@ class VisualHull {
   // does not (a is expected to survive the view).
   static double FirstExit(const ViewData& view, const Eigen::Vector3d& a, const Eigen::Vector3d& d,
                           double t_max);
+  // FirstExit's walk for a segment in front of the camera: P * [a; 1] = (hx, hy, hw), P * [d; 0]
+  // = hd, from the nearest pixel (iu, iv) of a to that (end_u, end_v) of a + t_max d.
+  static double WalkCells(const ViewData& view, double hx, double hy, double hw, const double* hd,
+                          double t_max, int iu, int iv, int end_u, int end_v);
   // Returns whether the block still holds occupied voxels.
   bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node);
   void ClearBlock(int level, const Eigen::Vector3i& node);
