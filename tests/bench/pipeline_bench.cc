@@ -62,9 +62,13 @@ void BM_LastViewToFiles(benchmark::State& state) {
       fs::temp_directory_path() / ("revolve_pipeline_bench_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   std::size_t triangles = 0;
+  const fs::path out = dir / "model";
   for (auto _ : state) {
     state.PauseTiming();
     VisualHull hull = before;
+    // A new folder each time, as a scan's: deleting the last run's files is not part of it.
+    fs::remove_all(out);
+    fs::create_directories(out);
     state.ResumeTiming();
     const int last = kViews - 1;
     const Expected<void> integrated = kNaive ? hull.IntegrateNaive(f.masks[last], f.views[last])
@@ -77,7 +81,7 @@ void BM_LastViewToFiles(benchmark::State& state) {
     TextureOptions options;
     options.atlas = texture;
     if (!TextureMesh(&mesh, f.views, f.images, options)) state.SkipWithError("texture failed");
-    if (!WriteModel(mesh, dir, "model", {"ply", "obj", "stl", "glb", "wrl"})) {
+    if (!WriteModel(mesh, out, "model", {"ply", "obj", "stl", "glb", "wrl"})) {
       state.SkipWithError("write failed");
     }
     triangles = mesh.faces.size();
