@@ -286,10 +286,11 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   }
   const std::vector<Eigen::Vector3f>& vertices = mesh->vertices;
 
-  // Per-face unit normals and centroids (structure of arrays for the per-view sweeps), vertex
-  // normals, and the mesh's scale.
-  std::vector<float> fnx(nf), fny(nf), fnz(nf);
-  std::vector<Eigen::Vector3f> centroid(nf);
+  // Per-face unit normals and centroids (structure of arrays for the per-view sweeps; for the
+  // atlas only), vertex normals, and the mesh's scale.
+  const int atlas_faces = options.atlas ? nf : 0;
+  std::vector<float> fnx(atlas_faces), fny(atlas_faces), fnz(atlas_faces);
+  std::vector<Eigen::Vector3f> centroid(atlas_faces);
   std::vector<Eigen::Vector3f> vertex_normal(nv, Eigen::Vector3f::Zero());
   double edge_sum = 0.0;
   Eigen::Vector3f lo = vertices[mesh->faces[0][0]];
@@ -301,13 +302,15 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     const Eigen::Vector3f& c = vertices[f[2]];
     const Eigen::Vector3f n = (b - a).cross(c - a);
     for (int k = 0; k < 3; ++k) vertex_normal[f[k]] += n;
-    const float length = n.norm();
-    const Eigen::Vector3f unit =
-        length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
-    fnx[i] = unit.x();
-    fny[i] = unit.y();
-    fnz[i] = unit.z();
-    centroid[i] = (a + b + c) / 3.0f;
+    if (i < atlas_faces) {
+      const float length = n.norm();
+      const Eigen::Vector3f unit =
+          length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+      fnx[i] = unit.x();
+      fny[i] = unit.y();
+      fnz[i] = unit.z();
+      centroid[i] = (a + b + c) / 3.0f;
+    }
     edge_sum += (b - a).norm();
     lo = lo.cwiseMin(a);
     hi = hi.cwiseMax(a);
