@@ -165,19 +165,17 @@ char* WriteUnsigned(char* out, unsigned long long value) {
 }
 
 // WriteFixed with the number of decimals known at compile time (constant divisors).
+// `magnitude`: |value| * 10^kDecimals rounded; `negative`: a minus sign when magnitude > 0.
 template <int kDecimals>
-char* WriteFixedN(char* out, double scaled) {
+char* WriteFixedN(char* out, unsigned long long magnitude, bool negative) {
   constexpr unsigned long long kScale = [] {
     unsigned long long p = 1;
     for (int d = 0; d < kDecimals; ++d) p *= 10;
     return p;
   }();
-  long long q = static_cast<long long>(scaled);
-  if (q < 0) {
+  if (negative && magnitude > 0) {
     *out++ = '-';
-    q = -q;
   }
-  const auto magnitude = static_cast<unsigned long long>(q);
   out = WriteUnsigned(out, magnitude / kScale);
   unsigned long long fraction = magnitude % kScale;
   if (fraction == 0) {
@@ -213,31 +211,36 @@ char* WriteInt(char* out, long long value) {
 char* WriteFixed(char* out, float value, int decimals) {
   static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
   decimals = std::clamp(decimals, 0, 9);
-  const double scaled = std::round(static_cast<double>(value) * kPow10[decimals]);
-  if (!std::isfinite(scaled) || std::abs(scaled) > 1e17) {
+  const double scaled = static_cast<double>(value) * kPow10[decimals];
+  const double magnitude = std::abs(scaled);
+  if (!(magnitude <= 1e17)) {  // NaN, infinite or too large for the integer path
     return std::to_chars(out, out + kMaxNumberChars, value).ptr;
   }
+  // Rounded half away from zero, as std::round: below 0.5 it is 0; above, m + 0.5 is exact or
+  // rounds within the same integer, so truncating it rounds m.
+  const auto q = magnitude < 0.5 ? 0ULL : static_cast<unsigned long long>(magnitude + 0.5);
+  const bool negative = scaled < 0.0;
   switch (decimals) {
     case 0:
-      return WriteFixedN<0>(out, scaled);
+      return WriteFixedN<0>(out, q, negative);
     case 1:
-      return WriteFixedN<1>(out, scaled);
+      return WriteFixedN<1>(out, q, negative);
     case 2:
-      return WriteFixedN<2>(out, scaled);
+      return WriteFixedN<2>(out, q, negative);
     case 3:
-      return WriteFixedN<3>(out, scaled);
+      return WriteFixedN<3>(out, q, negative);
     case 4:
-      return WriteFixedN<4>(out, scaled);
+      return WriteFixedN<4>(out, q, negative);
     case 5:
-      return WriteFixedN<5>(out, scaled);
+      return WriteFixedN<5>(out, q, negative);
     case 6:
-      return WriteFixedN<6>(out, scaled);
+      return WriteFixedN<6>(out, q, negative);
     case 7:
-      return WriteFixedN<7>(out, scaled);
+      return WriteFixedN<7>(out, q, negative);
     case 8:
-      return WriteFixedN<8>(out, scaled);
+      return WriteFixedN<8>(out, q, negative);
     default:
-      return WriteFixedN<9>(out, scaled);
+      return WriteFixedN<9>(out, q, negative);
   }
 }
 

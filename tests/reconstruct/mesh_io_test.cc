@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "reconstruct/hull/marching_cubes.h"
+#include "reconstruct/io/atomic_file.h"
 #include "reconstruct/metrics/metrics.h"
 
 namespace revolve::reconstruct {
@@ -239,6 +240,49 @@ TEST_F(MeshIoTest, ReadErrorsNameTheFile) {
   mesh = ReadVrml(dir_ / "junk.wrl");
   ASSERT_FALSE(mesh.has_value());
   EXPECT_NE(mesh.error().message.find("junk.wrl"), std::string::npos);
+}
+
+TEST(TextNumbers, FixedDecimalsRoundHalfAwayFromZeroAndDropTrailingZeros) {
+  // The text writers' numbers: value * 10^decimals rounded as std::round does (ties away from
+  // zero: coordinates on multiples of 1/32 mm are ties at 4 decimals), trailing zeros dropped.
+  auto reference = [](float value, int decimals) {
+    long long scale = 1;
+    for (int d = 0; d < decimals; ++d) scale *= 10;
+    const double rounded = std::round(static_cast<double>(value) * static_cast<double>(scale));
+    const auto magnitude = static_cast<unsigned long long>(std::abs(rounded));
+    std::string text = (rounded < 0.0 && magnitude > 0) ? "-" : "";
+    text += std::to_string(magnitude / scale);
+    std::string fraction = decimals > 0 ? std::to_string(magnitude % scale) : "";
+    fraction.insert(0, static_cast<std::size_t>(decimals) - fraction.size(), '0');
+    while (!fraction.empty() && fraction.back() == '0') fraction.pop_back();
+    if (!fraction.empty()) text += "." + fraction;
+    return text;
+  };
+  auto written = [](float value, int decimals) {
+    char buffer[internal::kMaxNumberChars];
+    return std::string(buffer, internal::WriteFixed(buffer, value, decimals));
+  };
+  std::vector<float> values = {0.0f,     -0.0f,       0.03125f,   -0.03125f, 0.3125f,
+                               1.00005f, 5e-5f,       4.9999e-5f, 0.5f,      123.45675f,
+                               -60.0f,   0.49999997f, 9.99995f};
+  for (int k = -4096; k <= 4096; ++k) values.push_back(static_cast<float>(k) / 64.0f);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coordinate(-500.0f, 500.0f);
+  std::uniform_real_distribution<float> small(-1e-3f, 1e-3f);
+  for (int i = 0; i < 200000; ++i) {
+    values.push_back(coordinate(rng));
+    values.push_back(small(rng));
+  }
+  for (const int decimals : {0, 3, 4, 6}) {
+    for (const float value : values) {
+      ASSERT_EQ(written(value, decimals), reference(value, decimals))
+          << "value " << value << " with " << decimals << " decimals";
+    }
+  }
+  EXPECT_EQ(written(0.03125f, 4), "0.0313");
+  EXPECT_EQ(written(-0.03125f, 4), "-0.0313");
+  EXPECT_EQ(written(-0.00001f, 4), "0");
+  EXPECT_EQ(written(12.5f, 4), "12.5");
 }
 
 }  // namespace
