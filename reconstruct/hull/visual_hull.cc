@@ -1045,8 +1045,13 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         const double hx = sample_hx[g];
         const double hy = sample_hy[g];
         const double hw = sample_w[g];
-        const int iu = static_cast<int>(std::floor(sample_u[g] + 0.5));
-        const int iv = static_cast<int>(std::floor(sample_v[g] + 0.5));
+        // The nearest pixel (used in front of the camera only; NaN and huge values are clamped
+        // so that the cast is defined).
+        auto nearest = [](double x) {
+          return static_cast<int>(std::floor((x > -1e9 ? (x < 1e9 ? x : 1e9) : -1e9) + 0.5));
+        };
+        const int iu = nearest(sample_u[g]);
+        const int iv = nearest(sample_v[g]);
         double longest = 0.0;
         for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
           const Item& item = items[k];
