@@ -218,6 +218,7 @@ char* WriteFixed(char* out, float value, int decimals) {
   }
   // Rounded half away from zero, as std::round: below 0.5 it is 0; above, m + 0.5 is exact or
   // rounds within the same integer, so truncating it rounds m.
+  // NOLINTNEXTLINE(bugprone-incorrect-roundings): the case it warns about (m < 0.5) is excluded.
   const auto q = magnitude < 0.5 ? 0ULL : static_cast<unsigned long long>(magnitude + 0.5);
   const bool negative = scaled < 0.0;
   switch (decimals) {

@@ -24,8 +24,6 @@ namespace fs = std::filesystem;
 static_assert(std::endian::native == std::endian::little,
               "the PLY writer and reader assume a little-endian host");
 
-using internal::AppendFixed;
-using internal::AppendInt;
 using internal::AtomicFile;
 using internal::BadFile;
 using internal::ReadWholeFile;
@@ -329,7 +327,7 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
   out.Put(text);
   for (const Eigen::Vector3f& v : mesh.vertices) {
     char* p = out.Room(4 * internal::kMaxNumberChars);
-    std::memcpy(p, "        ", 8);
+    std::copy_n("        ", 8, p);
     p += 8;
     for (int k = 0; k < 3; ++k) {
       if (k > 0) {
@@ -350,14 +348,14 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
     }
     for (const Color& c : mesh.colors) {
       char* p = out.Room(4 * internal::kMaxNumberChars);
-      std::memcpy(p, "        ", 8);
+      std::copy_n("        ", 8, p);
       p += 8;
       for (int k = 0; k < 3; ++k) {
         if (k > 0) {
           *p++ = ' ';
         }
         const std::string& t = channel[c[k]];
-        std::memcpy(p, t.data(), t.size());
+        std::copy_n(t.data(), t.size(), p);
         p += t.size();
       }
       *p++ = ',';
@@ -369,14 +367,14 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
   out.Put("    coordIndex [\n");
   for (const Eigen::Vector3i& f : mesh.faces) {
     char* p = out.Room(4 * internal::kMaxNumberChars);
-    std::memcpy(p, "      ", 6);
+    std::copy_n("      ", 6, p);
     p += 6;
     for (int k = 0; k < 3; ++k) {
       p = internal::WriteInt(p, f[k]);
       *p++ = ',';
       *p++ = ' ';
     }
-    std::memcpy(p, "-1,\n", 4);
+    std::copy_n("-1,\n", 4, p);
     out.End(p + 4);
   }
   out.Put("    ]\n  }\n}\n  ]\n}\n");

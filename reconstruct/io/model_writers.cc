@@ -24,8 +24,6 @@ namespace fs = std::filesystem;
 static_assert(std::endian::native == std::endian::little,
               "the STL and glTF writers assume a little-endian host");
 
-using internal::AppendFixed;
-using internal::AppendInt;
 using internal::AtomicFile;
 using internal::BadFile;
 using internal::ReadWholeFile;
@@ -153,7 +151,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
     if (colors) {
       for (int k = 0; k < 3; ++k) {
         const std::string& c = channel[mesh.colors[i][k]];
-        std::memcpy(p, c.data(), c.size());
+        std::copy_n(c.data(), c.size(), p);
         p += c.size();
       }
     }
@@ -163,7 +161,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
   if (textured) {
     for (const Eigen::Vector2f& uv : mesh.uvs) {
       char* p = out.Room(4 * kMaxNumberChars);
-      std::memcpy(p, "vt ", 3);
+      std::copy_n("vt ", 3, p);
       p = WriteFixed(p + 3, uv.x(), 6);
       *p++ = ' ';
       p = WriteFixed(p, 1.0f - uv.y(), 6);
@@ -442,7 +440,7 @@ Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
     const Eigen::Vector3f normal = FaceNormal(mesh, f);
     std::memcpy(p, normal.data(), 12);
     for (int c = 0; c < 3; ++c) {
-      std::memcpy(p + 12 + 12 * c, mesh.vertices[f[c]].data(), 12);
+      std::memcpy(p + 12 + std::ptrdiff_t{12} * c, mesh.vertices[f[c]].data(), 12);
     }
     p[48] = 0;  // attribute byte count
     p[49] = 0;
@@ -475,7 +473,7 @@ Expected<Mesh> ReadStl(const fs::path& path) {
     const char* record = bytes.data() + 84 + std::size_t{i} * 50;
     for (int c = 0; c < 3; ++c) {
       Eigen::Vector3f v;
-      std::memcpy(v.data(), record + 12 + 12 * c, 12);
+      std::memcpy(v.data(), record + 12 + std::ptrdiff_t{12} * c, 12);
       mesh.vertices.push_back(v);
     }
     const int base = static_cast<int>(3 * i);

@@ -395,7 +395,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   // The ranking is looked up: the sphere of directions is binned as a cube map, each bin holds
   // the views ranked for its centre, and a normal takes its bin's views, rescored with itself.
   constexpr int kBins = 48;  // per cube face side (under 2 degrees)
-  std::vector<Candidates> bins(6 * kBins * kBins);
+  std::vector<Candidates> bins(std::size_t{6} * kBins * kBins);
   for (int face = 0; face < 6; ++face) {
     for (int bt = 0; bt < kBins; ++bt) {
       for (int bs = 0; bs < kBins; ++bs) {
@@ -490,7 +490,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     float half_angle = static_cast<float>(M_PI);  // pi: no test
   };
   constexpr int kClusterSide = 8;
-  std::vector<Cluster> clusters(kClusterSide * kClusterSide * kClusterSide);
+  std::vector<Cluster> clusters(std::size_t{kClusterSide} * kClusterSide * kClusterSide);
   std::vector<float> vx(nv), vy(nv), vz(nv), vnx(nv), vny(nv), vnz(nv);
   {
     const Eigen::Vector3f scale = kClusterSide * (box_hi - box_lo).cwiseMax(1e-6f).cwiseInverse();

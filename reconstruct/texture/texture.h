@@ -3,11 +3,13 @@
 //
 // Visibility comes from the mesh itself: per view, the vertices that face the camera are
 // splatted into a coarse depth buffer (cells about 1.5 mean edge lengths wide, each holding the
-// nearest depth), and a point is seen when it faces the camera, lies in the image and is not
-// behind its cell's depth by more than a tolerance (two mean edge lengths, plus the depth a
-// surface at that obliquity spans across two cells). "Best" is the largest cosine between the
-// surface normal and the direction to the camera; the few best views of each face and vertex
-// are ranked first by the direction from the mesh's centre, then tested exactly.
+// nearest depth; only the cells under the view's candidates are kept, and clusters of vertices
+// that cannot face the view or land there are skipped), and a point is seen when it faces the
+// camera, lies in the image and is not behind its cell's depth by more than a tolerance (two
+// mean edge lengths, plus the depth a surface at that obliquity spans across two cells). "Best"
+// is the largest cosine between the surface normal and the direction to the camera; the few
+// best views of each face and vertex are ranked first by the direction from the mesh's centre,
+// then tested exactly.
 //
 // Vertex colours: the blend of the ranked views that see the vertex at less than max_angle_deg
 // from its normal, weighted by cos^8 (the best view dominates; neighbours soften the seams),
