@@ -89,13 +89,6 @@ class DepthCells {
     rows_ = r1 - r0_ + 1;
     depth_.assign(static_cast<std::size_t>(cols_) * rows_, std::numeric_limits<float>::infinity());
   }
-  void Splat(float u, float v, float depth) {
-    const unsigned c = static_cast<unsigned>(Cell(u, all_cols_) - c0_);
-    const unsigned r = static_cast<unsigned>(Cell(v, all_rows_) - r0_);
-    if (c >= static_cast<unsigned>(cols_) || r >= static_cast<unsigned>(rows_)) return;
-    float& cell = depth_[static_cast<std::size_t>(r) * cols_ + c];
-    cell = std::min(cell, depth);
-  }
   // Splat of every point i (coordinates x, y, z) whose normal (nx, ny, nz) faces `toward`
   // within `margin` (n . toward >= -margin) and that lies in front of the camera, at the pixel
   // p projects it to, with the depth depth_row . [X; 1]. The projections of all points are
