@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "reconstruct/cameras/views.h"
 #include "reconstruct/metrics/metrics.h"
 #include "tests/reconstruct/sphere_scene.h"
 
@@ -288,29 +289,25 @@ TEST(VisualHull, SurfaceIsClosedAndLiesWithinTheGrid) {
   EXPECT_NEAR(stats.bbox_min_mm.z(), 0.0, 1e-6);
 }
 
-TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExit) {
-  // ExtractSurface walks only the views that can cut each edge, in closed form; sampling every
-  // edge finely against every view, then bisecting the first step that leaves the hull, must
-  // place every vertex at the same position (to the bisection's precision).
-  const Rig rig = StationRig();
-  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 40);
-  VisualHull hull(grid);
-  std::mt19937 rng(5);
-  for (double angle : {0.0, 35.0, 70.0, 105.0, 140.0, 175.0, 210.0}) {
-    ASSERT_TRUE(hull.Integrate(IrregularMask(rig, angle, &rng), ViewOf(rig, angle)).has_value());
-  }
+// ExtractSurface walks only the views that can cut each edge, in closed form; sampling every
+// edge finely against every view, then bisecting the first step that leaves the hull, must
+// place every vertex at the same position (to the bisection's precision), with and without a
+// clip plane at `clip_z`.
+void ExpectVerticesAtBruteForceFirstExit(const VisualHull& hull, double clip_z) {
+  const VoxelGrid& grid = hull.grid();
   for (const bool clip : {false, true}) {
-    SCOPED_TRACE(clip ? "clipped at z = 10.3 mm" : "not clipped");
+    SCOPED_TRACE(clip ? "clipped" : "not clipped");
     HullSurfaceOptions options;
     options.keep_largest_component = false;
-    if (clip) options.clip_below_z_mm = 10.3;
+    if (clip) options.clip_below_z_mm = clip_z;
     const Mesh mesh = hull.ExtractSurface(options);
 
     BitVolume field(grid.dims);
     for (int k = 0; k < grid.dims.z(); ++k) {
       for (int j = 0; j < grid.dims.y(); ++j) {
         for (int i = 0; i < grid.dims.x(); ++i) {
-          field.Set(i, j, k, hull.Occupied(i, j, k) && (!clip || grid.Centre(i, j, k).z() >= 10.3));
+          field.Set(i, j, k,
+                    hull.Occupied(i, j, k) && (!clip || grid.Centre(i, j, k).z() >= clip_z));
         }
       }
     }
@@ -322,7 +319,7 @@ TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExit) {
         const bool leaves =
             ((e.outside.array() < 0) || (e.outside.array() >= grid.dims.array())).any();
         double t_max = leaves ? 0.5 : 1.0;
-        if (clip && d.z() < 0.0) t_max = std::min(t_max, (10.3 - a.z()) / d.z());
+        if (clip && d.z() < 0.0) t_max = std::min(t_max, (clip_z - a.z()) / d.z());
         constexpr int kSamples = 512;
         double t = t_max;
         for (int s = 1; s <= kSamples; ++s) {
@@ -356,9 +353,43 @@ TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExit) {
       const MeshStats stats = ComputeStats(mesh);
       EXPECT_TRUE(stats.closed);
       EXPECT_TRUE(stats.oriented);
-      EXPECT_NEAR(stats.bbox_min_mm.z(), 10.3, 1e-5);
+      EXPECT_NEAR(stats.bbox_min_mm.z(), clip_z, 1e-5);
     }
   }
+}
+
+TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExit) {
+  const Rig rig = StationRig();
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 40);
+  VisualHull hull(grid);
+  std::mt19937 rng(5);
+  for (double angle : {0.0, 35.0, 70.0, 105.0, 140.0, 175.0, 210.0}) {
+    ASSERT_TRUE(hull.Integrate(IrregularMask(rig, angle, &rng), ViewOf(rig, angle)).has_value());
+  }
+  ExpectVerticesAtBruteForceFirstExit(hull, 10.3);
+}
+
+TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExitWithThesisViews) {
+  // The thesis's orthographic views (affine: w = 1 everywhere, lengths in pixels), silhouettes
+  // with holes and bumps drawn in the image.
+  constexpr int kWidth = 200;
+  constexpr int kHeight = 150;
+  const VoxelGrid grid = Grid({-70, -70, 0}, {70, 70, 140}, 44);
+  VisualHull hull(grid);
+  std::mt19937 rng(9);
+  std::uniform_int_distribution<int> u(30, kWidth - 30);
+  std::uniform_int_distribution<int> v(15, kHeight - 15);
+  std::uniform_int_distribution<int> r(2, 12);
+  for (double angle : {0.0, 30.0, 65.0, 100.0, 150.0, 220.0, 300.0}) {
+    cv::Mat mask(kHeight, kWidth, CV_8UC1, cv::Scalar(0));
+    cv::ellipse(mask, cv::Point(kWidth / 2, kHeight / 2), cv::Size(45, 60), angle / 10.0, 0, 360,
+                cv::Scalar(255), cv::FILLED);
+    for (int i = 0; i < 14; ++i) {
+      cv::circle(mask, cv::Point(u(rng), v(rng)), r(rng), cv::Scalar(i % 2 ? 255 : 0), cv::FILLED);
+    }
+    ASSERT_TRUE(hull.Integrate(mask, ThesisView(kWidth, kHeight, angle)).has_value());
+  }
+  ExpectVerticesAtBruteForceFirstExit(hull, 20.3);
 }
 
 }  // namespace
