@@ -3,6 +3,8 @@
 
 #include <unistd.h>
 
+#include <cerrno>
+
 #include <utility>
 
 namespace revolve {
@@ -29,6 +31,14 @@ class UniqueFd {
   void Reset() {
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
+  }
+  // Closes the descriptor now and reports close(2)'s errno (0 on success; a write-back error
+  // may surface only here); the object is then empty.
+  int Close() {
+    int err = 0;
+    if (fd_ >= 0 && ::close(fd_) != 0) err = errno;
+    fd_ = -1;
+    return err;
   }
   // Gives up ownership without closing; the caller must close the result.
   int Release() { return std::exchange(fd_, -1); }

@@ -30,22 +30,6 @@ fs::path DirectoryOf(const fs::path& path) {
 
 }  // namespace
 
-void UniqueFd::Reset(int fd) {
-  if (fd_ >= 0) {
-    ::close(fd_);
-  }
-  fd_ = fd;
-}
-
-int UniqueFd::Close() {
-  int err = 0;
-  if (fd_ >= 0 && ::close(fd_) != 0) {
-    err = errno;
-  }
-  fd_ = -1;
-  return err;
-}
-
 AtomicFile::~AtomicFile() {
   if (!temp_.empty()) {
     fd_.Close();
@@ -60,7 +44,7 @@ Expected<void> AtomicFile::Open() {
   if (fd < 0) {
     return std::unexpected(IoError(path_, "cannot create the file", errno));
   }
-  fd_.Reset(fd);
+  fd_ = UniqueFd(fd);
   temp_ = name;
   ::fchmod(fd, 0644);
   buffer_.reserve(kBufferSize);

@@ -8,25 +8,10 @@
 #include <vector>
 
 #include "base/error.h"
+#include "base/unique_fd.h"
 #include "reconstruct/mesh.h"
 
 namespace revolve::reconstruct::internal {
-
-// An open file descriptor (RAII).
-class UniqueFd {
- public:
-  explicit UniqueFd(int fd = -1) : fd_(fd) {}
-  UniqueFd(const UniqueFd&) = delete;
-  UniqueFd& operator=(const UniqueFd&) = delete;
-  ~UniqueFd() { Reset(); }
-  int get() const { return fd_; }
-  void Reset(int fd = -1);
-  // Closes now and reports close(2)'s errno (0 on success).
-  int Close();
-
- private:
-  int fd_;
-};
 
 // Buffered writer to a temporary file (".<name>.tmp-XXXXXX" beside `path`) that becomes `path`
 // on Commit (fsync, rename, fsync of the directory). Destroyed before Commit, or after a failed

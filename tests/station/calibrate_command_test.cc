@@ -286,16 +286,32 @@ TEST(ScanGeometry, ThesisViewWithAxisPutsTheAxisOnTheLine) {
   EXPECT_NEAR(pixel.y(), height - 1, 1e-9);
 }
 
-class ScanGeometryTest : public CalibrateCommandTest {};
+class ScanGeometryTest : public CalibrateCommandTest {
+ protected:
+  void SetUp() override {
+    CalibrateCommandTest::SetUp();
+    auto camera = capture::Create(capture::CameraOptions{}, std::make_shared<SimulatedPlate>());
+    ASSERT_TRUE(camera);
+    camera_ = std::move(*camera);
+  }
+
+  // The simulated camera's scan geometry from a calibration of `lens` (and `axis`) saved as
+  // `name` in the test's folder.
+  Expected<ScanGeometry> GeometryFrom(const calibrate::IntrinsicsResult& lens,
+                                      const std::optional<calibrate::AxisResult>& axis,
+                                      const std::string& name) {
+    EXPECT_TRUE(calibrate::SaveCalibration(
+        calibrate::Calibration::From(rig::TestBoard(), lens, axis), dir_ / name));
+    return ScanGeometry::Create({}, *camera_, dir_ / name);
+  }
+
+  std::unique_ptr<capture::Camera> camera_;
+};
 
 TEST_F(ScanGeometryTest, ALensOnlyCalibrationIsRefusedWithWhatToDo) {
   calibrate::IntrinsicsResult lens;
   lens.camera = rig::TrueLens();
-  ASSERT_TRUE(calibrate::SaveCalibration(
-      calibrate::Calibration::From(rig::TestBoard(), lens, std::nullopt), dir_ / "lens.toml"));
-  auto camera = capture::Create(capture::CameraOptions{}, std::make_shared<SimulatedPlate>());
-  ASSERT_TRUE(camera);
-  Expected<ScanGeometry> geometry = ScanGeometry::Create({}, **camera, dir_ / "lens.toml");
+  Expected<ScanGeometry> geometry = GeometryFrom(lens, std::nullopt, "lens.toml");
   ASSERT_FALSE(geometry);
   EXPECT_NE(geometry.error().message.find("revolve calibrate axis --calibration"),
             std::string::npos)
@@ -307,11 +323,7 @@ TEST_F(ScanGeometryTest, FramesOfAnotherSizeAreRefused) {
   lens.camera = rig::TrueLens();
   calibrate::AxisResult axis;
   axis.cam_from_table = rig::TrueRig().cam_from_table;
-  ASSERT_TRUE(calibrate::SaveCalibration(calibrate::Calibration::From(rig::TestBoard(), lens, axis),
-                                         dir_ / "cal.toml"));
-  auto camera = capture::Create(capture::CameraOptions{}, std::make_shared<SimulatedPlate>());
-  ASSERT_TRUE(camera);
-  Expected<ScanGeometry> geometry = ScanGeometry::Create({}, **camera, dir_ / "cal.toml");
+  Expected<ScanGeometry> geometry = GeometryFrom(lens, axis, "cal.toml");
   ASSERT_TRUE(geometry) << geometry.error().ToString();
   EXPECT_EQ(geometry->source(), GeometrySource::kCalibration);
   EXPECT_TRUE(geometry->metric());
@@ -328,11 +340,7 @@ TEST_F(ScanGeometryTest, FramesAreUndistortedWithTheCalibratedLens) {
   lens.camera.distortion = {-0.12, 0.09, 0.0004, -0.0003, 0.0};
   calibrate::AxisResult axis;
   axis.cam_from_table = rig::TrueRig().cam_from_table;
-  ASSERT_TRUE(calibrate::SaveCalibration(calibrate::Calibration::From(rig::TestBoard(), lens, axis),
-                                         dir_ / "cal.toml"));
-  auto camera = capture::Create(capture::CameraOptions{}, std::make_shared<SimulatedPlate>());
-  ASSERT_TRUE(camera);
-  Expected<ScanGeometry> geometry = ScanGeometry::Create({}, **camera, dir_ / "cal.toml");
+  Expected<ScanGeometry> geometry = GeometryFrom(lens, axis, "cal.toml");
   ASSERT_TRUE(geometry) << geometry.error().ToString();
   cv::Mat frame(576, 768, CV_8UC3);
   cv::randu(frame, cv::Scalar::all(0), cv::Scalar::all(255));
@@ -343,7 +351,7 @@ TEST_F(ScanGeometryTest, FramesAreUndistortedWithTheCalibratedLens) {
   EXPECT_GT(cv::norm(undistorted, frame, cv::NORM_L1), 0.0);
   EXPECT_TRUE(geometry->ReportJson()["calibration"]["undistorted"].get<bool>());
   // No calibration: frames pass as they are.
-  Expected<ScanGeometry> none = ScanGeometry::Create({}, **camera, {});
+  Expected<ScanGeometry> none = ScanGeometry::Create({}, *camera_, {});
   ASSERT_TRUE(none);
   EXPECT_EQ(none->Undistort(frame).data, frame.data);
 }
