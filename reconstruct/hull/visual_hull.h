@@ -14,18 +14,20 @@
 // size) keeps one "still has occupied voxels" flag per block, so carved regions are skipped.
 //
 // Hierarchical carving (Integrate): per view a summed-area table of the mask; a block's voxel
-// centres project inside the bounding rectangle of the rounded projections of its 8 extreme
-// centres (perspective maps the box of centres to the convex hull of its projected corners;
-// rounding is monotonic; the rectangle is widened by 1e-6 px against floating-point error, which
-// only makes it conservative). Mask count 0 and rectangle inside the image: carve the block.
+// centres project inside a rectangle bounded from the projection of the box's middle c and the
+// projection's derivative (for X = c + d, u(X) - u(c) = ((P0 - u(c) P2) . d) / w(X), w(X) at
+// least w(c) - sum |P2a| |d_a|), widened by 1e-6 px against floating-point error, which only
+// makes it conservative. Mask count 0 and rectangle inside the image: carve the block.
 // Count equal to the rectangle's area clipped to the image: nothing in the block is carved.
 // All corners behind the camera: nothing is seen. Otherwise (including a block straddling the
-// camera plane) subdivide down to bricks, then test single voxels with the point test. The
+// camera plane) subdivide down to bricks, then test single voxels with the point test (a row
+// of 4 voxels at a time in vectors: the same operations per voxel, AVX2 where present). The
 // result is bit-identical to IntegrateNaive, the per-voxel reference (both evaluate the same
 // projection expression; visual_hull.cc is built without floating-point contraction).
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -144,6 +146,17 @@ class VisualHull {
   // (x, y, w); count <= 8.
   static BlockClass ClassifyProjected(const ViewData& view, const Sat& sat,
                                       const double (*projected)[3], int count);
+  // A block's projection: the rectangle (px) that holds the projections of its points in front
+  // of the camera, and whether some are behind it (in_front + behind > 0).
+  struct ProjectedRect {
+    double u_min = std::numeric_limits<double>::infinity();
+    double u_max = -std::numeric_limits<double>::infinity();
+    double v_min = std::numeric_limits<double>::infinity();
+    double v_max = -std::numeric_limits<double>::infinity();
+    int in_front = 0;
+    int behind = 0;
+  };
+  static BlockClass ClassifyRect(const ViewData& view, const Sat& sat, const ProjectedRect& rect);
   // Where every cut edge first leaves the hull (see ExtractSurface).
   std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges,
                                    std::optional<double> clip_below_z_mm, bool cull_views) const;
