@@ -26,6 +26,10 @@ std::int64_t BitVolume::Count() const {
   return count;
 }
 
+bool BitVolume::Any() const {
+  return std::any_of(words_.begin(), words_.end(), [](std::uint64_t w) { return w != 0; });
+}
+
 namespace {
 
 // ---------------------------------------------------------------------------------------------
@@ -291,7 +295,7 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
   const CaseTable& table = Table();
   Mesh mesh;
   const Eigen::Vector3i& dims = field.dims();
-  if (dims.minCoeff() <= 0 || field.Count() == 0) {
+  if (dims.minCoeff() <= 0 || !field.Any()) {
     return mesh;
   }
 

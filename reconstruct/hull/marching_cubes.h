@@ -47,6 +47,8 @@ class BitVolume {
     word = value ? (word | bit) : (word & ~bit);
   }
   std::int64_t Count() const;
+  // Whether any sample is set (cheaper than Count() > 0).
+  bool Any() const;
 
   int words_per_row() const { return words_per_row_; }
   // The bits of row (j, k): bit i of the row is sample (i, j, k); bits past dims.x() are 0.

@@ -890,52 +890,52 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     std::uint32_t edge;
     double t_max;
   };
-  std::vector<Item> items(n);
   const Eigen::Vector3i block_dims = (brick_dims_ + Eigen::Vector3i::Constant(3)) / 4;
-  for (std::size_t e = 0; e < n; ++e) {
-    const GridEdge& edge = edges[e];
-    Item& item = items[e];
-    item.inside = edge.inside;
-    const Eigen::Vector3i step = edge.outside - edge.inside;
-    item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
-    item.sign = static_cast<std::int8_t>(step[item.axis]);
-    item.edge = static_cast<std::uint32_t>(e);
-    const bool leaves =
-        ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
-    item.t_max = leaves ? 0.5 : 1.0;
-    if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
-      const double z = grid_.Centre(0, 0, edge.inside.z()).z();
-      const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
-      if (to_plane >= 0.0 && to_plane < item.t_max) {
-        item.t_max = to_plane;
-      }
-    }
-    const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
-    const Eigen::Vector3i brick = voxel / kBrick;
-    const Eigen::Vector3i block = brick / 4;
-    const Eigen::Vector3i local = brick - 4 * block;
-    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
-    item.key =
-        static_cast<std::uint64_t>(
-            (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x())
-            << 12 |
-        static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
-        static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
-  }
+  auto block_of = [&](const Eigen::Vector3i& voxel) {
+    const Eigen::Vector3i block = voxel / (4 * kBrick);
+    return static_cast<std::uint32_t>(
+        (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x());
+  };
+  // Grouped by block (a counting sort, the items made in place), then sorted within each
+  // block (a few hundred edges) by key.
+  std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
+  for (const GridEdge& edge : edges) ++start[block_of(edge.inside.cwiseMax(0)) + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<Item> items(n);
   {
-    // By block (counting sort), then within each block (a few hundred edges) by key.
-    std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
-    for (const Item& item : items) ++start[(item.key >> 12) + 1];
-    std::partial_sum(start.begin(), start.end(), start.begin());
-    std::vector<Item> sorted(n);
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (const Item& item : items) sorted[fill[item.key >> 12]++] = item;
-    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-      std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(start[b]),
-                sorted.begin() + static_cast<std::ptrdiff_t>(start[b + 1]),
-                [](const Item& x, const Item& y) { return x.key < y.key; });
+    for (std::size_t e = 0; e < n; ++e) {
+      const GridEdge& edge = edges[e];
+      const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
+      const std::uint32_t block_index = block_of(voxel);
+      Item& item = items[fill[block_index]++];
+      item.inside = edge.inside;
+      const Eigen::Vector3i step = edge.outside - edge.inside;
+      item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
+      item.sign = static_cast<std::int8_t>(step[item.axis]);
+      item.edge = static_cast<std::uint32_t>(e);
+      const bool leaves =
+          ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
+      item.t_max = leaves ? 0.5 : 1.0;
+      if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
+        const double z = grid_.Centre(0, 0, edge.inside.z()).z();
+        const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
+        if (to_plane >= 0.0 && to_plane < item.t_max) {
+          item.t_max = to_plane;
+        }
+      }
+      const Eigen::Vector3i brick = voxel / kBrick;
+      const Eigen::Vector3i local = brick - 4 * (brick / 4);
+      const Eigen::Vector3i in_brick = voxel - kBrick * brick;
+      item.key = static_cast<std::uint64_t>(block_index) << 12 |
+                 static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
+                 static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
     }
-    items.swap(sorted);
+  }
+  for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+    std::sort(items.begin() + static_cast<std::ptrdiff_t>(start[b]),
+              items.begin() + static_cast<std::ptrdiff_t>(start[b + 1]),
+              [](const Item& x, const Item& y) { return x.key < y.key; });
   }
 
   struct Sample {  // an inside sample and its edges, items[first, first + count)
