@@ -181,53 +181,76 @@ VisualHull::Sat VisualHull::MakeSat(const ViewData& view) {
   return sat;
 }
 
-VisualHull::BlockClass VisualHull::Classify(const ViewData& view, const Sat& sat,
-                                            const Eigen::Vector3i& lo,
-                                            const Eigen::Vector3i& hi) const {
-  // The box of voxel centres as its middle c and half extents e. For X = c + d (|d_a| <= e_a),
-  // u(X) - u(c) = ((P0 - u(c) P2) . d) / w(X) (the same for v with P1), and w(X) >= w(c) -
-  // sum_a |P2a| e_a: two divisions bound the rectangle of the whole box (every corner's
-  // projection would take eight; the bound is as tight up to the variation of w over the box,
-  // a fraction of a percent for a block at the station's distances).
-  const Matrix34d& p = view.pixel_from_object;
+// The rectangles of 8 boxes of voxel centres, each as its middle c and half extents e. For
+// X = c + d (|d_a| <= e_a), u(X) - u(c) = ((P0 - u(c) P2) . d) / w(X) (the same for v with
+// P1), and w(X) >= w(c) - sum_a |P2a| e_a: two divisions bound the rectangle of a whole box
+// (its corners' projections would take eight; the bound is as tight up to the variation of w
+// over the box, a fraction of a percent for a block at the station's distances).
+void VisualHull::RectsOfBoxes(const Matrix34d& p, const BoxBatch& boxes, ProjectedRect* rects) {
+  double pr[3][4];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) pr[r][c] = p(r, c);
+  }
+  double u[BoxBatch::kSize], v[BoxBatch::kSize], reach_u[BoxBatch::kSize], reach_v[BoxBatch::kSize];
+  int state[BoxBatch::kSize];  // 0: in front, 1: behind, 2: straddles the camera's plane
+  for (int i = 0; i < BoxBatch::kSize; ++i) {
+    const double cx = boxes.cx[i], cy = boxes.cy[i], cz = boxes.cz[i];
+    const double ex = boxes.ex[i], ey = boxes.ey[i], ez = boxes.ez[i];
+    // Project's expression, in its order.
+    const double hx = pr[0][0] * cx + pr[0][1] * cy + pr[0][2] * cz + pr[0][3];
+    const double hy = pr[1][0] * cx + pr[1][1] * cy + pr[1][2] * cz + pr[1][3];
+    const double hw = pr[2][0] * cx + pr[2][1] * cy + pr[2][2] * cz + pr[2][3];
+    const double w_spread =
+        std::abs(pr[2][0]) * ex + std::abs(pr[2][1]) * ey + std::abs(pr[2][2]) * ez;
+    // Far beyond the rounding of w (relative ~1e-16); a block near the camera's plane is mixed.
+    const double w_tolerance = 1e-9 * (std::abs(hw) + w_spread);
+    const double w_min = hw - w_spread;
+    const bool behind = hw + w_spread < -w_tolerance;
+    const bool front = w_min > w_tolerance;  // false for NaN
+    state[i] = front ? 0 : (behind ? 1 : 2);
+    const double inv_w = 1.0 / hw;
+    const double ui = hx * inv_w;
+    const double vi = hy * inv_w;
+    const double inv_w_min = 1.0 / w_min;
+    u[i] = ui;
+    v[i] = vi;
+    reach_u[i] =
+        (std::abs(pr[0][0] - ui * pr[2][0]) * ex + std::abs(pr[0][1] - ui * pr[2][1]) * ey +
+         std::abs(pr[0][2] - ui * pr[2][2]) * ez) *
+        inv_w_min;
+    reach_v[i] =
+        (std::abs(pr[1][0] - vi * pr[2][0]) * ex + std::abs(pr[1][1] - vi * pr[2][1]) * ey +
+         std::abs(pr[1][2] - vi * pr[2][2]) * ez) *
+        inv_w_min;
+  }
+  for (int i = 0; i < BoxBatch::kSize; ++i) {
+    ProjectedRect& rect = rects[i];
+    rect = ProjectedRect{};
+    if (state[i] == 1) {
+      rect.behind = 8;  // all behind the camera
+    } else if (state[i] == 2) {
+      rect.behind = 1;  // straddles the camera's plane (or a non-finite value)
+      rect.in_front = 7;
+    } else {
+      rect.u_min = u[i] - reach_u[i];
+      rect.u_max = u[i] + reach_u[i];
+      rect.v_min = v[i] - reach_v[i];
+      rect.v_max = v[i] + reach_v[i];
+      rect.in_front = 8;
+    }
+  }
+}
+
+void VisualHull::AddBox(BoxBatch* boxes, int i, const Eigen::Vector3i& lo,
+                        const Eigen::Vector3i& hi) const {
   const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
   const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
-  const Eigen::Vector3d c = 0.5 * (l + h);
-  const Eigen::Vector3d e = 0.5 * (h - l);
-  const Homogeneous centre = Project(p, c);
-  const double w_spread =
-      std::abs(p(2, 0)) * e.x() + std::abs(p(2, 1)) * e.y() + std::abs(p(2, 2)) * e.z();
-  // Far beyond the rounding of w (relative ~1e-16); a block near the camera's plane is mixed.
-  const double w_tolerance = 1e-9 * (std::abs(centre.w) + w_spread);
-  ProjectedRect rect;
-  if (centre.w + w_spread < -w_tolerance) {
-    rect.behind = 8;  // all behind the camera
-    return ClassifyRect(view, sat, rect);
-  }
-  const double w_min = centre.w - w_spread;
-  if (!(w_min > w_tolerance)) {
-    rect.behind = 1;  // straddles the camera's plane (or a non-finite value)
-    rect.in_front = 7;
-    return ClassifyRect(view, sat, rect);
-  }
-  const double inv_w = 1.0 / centre.w;
-  const double u = centre.x * inv_w;
-  const double v = centre.y * inv_w;
-  const double inv_w_min = 1.0 / w_min;
-  const double reach_u =
-      (std::abs(p(0, 0) - u * p(2, 0)) * e.x() + std::abs(p(0, 1) - u * p(2, 1)) * e.y() +
-       std::abs(p(0, 2) - u * p(2, 2)) * e.z()) *
-      inv_w_min;
-  const double reach_v =
-      (std::abs(p(1, 0) - v * p(2, 0)) * e.x() + std::abs(p(1, 1) - v * p(2, 1)) * e.y() +
-       std::abs(p(1, 2) - v * p(2, 2)) * e.z()) *
-      inv_w_min;
-  rect.u_min = u - reach_u;
-  rect.u_max = u + reach_u;
-  rect.v_min = v - reach_v;
-  rect.v_max = v + reach_v;
-  rect.in_front = 8;
-  return ClassifyRect(view, sat, rect);
+  boxes->cx[i] = 0.5 * (l.x() + h.x());
+  boxes->cy[i] = 0.5 * (l.y() + h.y());
+  boxes->cz[i] = 0.5 * (l.z() + h.z());
+  boxes->ex[i] = 0.5 * (h.x() - l.x());
+  boxes->ey[i] = 0.5 * (h.y() - l.y());
+  boxes->ez[i] = 0.5 * (h.z() - l.z());
 }
 
 VisualHull::BlockClass VisualHull::ClassifyProjected(const ViewData& view, const Sat& sat,
@@ -428,40 +451,48 @@ void VisualHull::ClearBlock(int level, const Eigen::Vector3i& node) {
   }
 }
 
-bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level,
-                       const Eigen::Vector3i& node) {
-  if (level == 0) {
-    if (bricks_[BrickIndex(node)] == 0) {
-      return false;
-    }
-  } else if (!alive_[level][NodeIndex(level, node)]) {
-    return false;
-  }
-  const int size = kBrick << level;
-  const Eigen::Vector3i lo = node * size;
-  const Eigen::Vector3i hi =
-      (lo + Eigen::Vector3i::Constant(size - 1)).cwiseMin(grid_.dims - Eigen::Vector3i::Ones());
-  const BlockClass block_class = Classify(view, sat, lo, hi);
-  switch (block_class) {
-    case BlockClass::kUnaffected:
-      return true;
-    case BlockClass::kCarve:
-      ClearBlock(level, node);
-      return false;
-    case BlockClass::kMixed:
-    case BlockClass::kMixedInImage:
-      break;
-  }
+bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node,
+                       BlockClass block_class) {
   if (level == 0) {
     return block_class == BlockClass::kMixedInImage ? CarveBrick<true>(view, node)
                                                     : CarveBrick<false>(view, node);
   }
-  bool any = false;
+  // The children that still hold occupied voxels, classified together.
+  Eigen::Vector3i children[8];
+  int count = 0;
+  BoxBatch boxes;
   const Eigen::Vector3i& child_dims = level_dims_[level - 1];
+  const int size = kBrick << (level - 1);
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i child = 2 * node + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    if ((child.array() < child_dims.array()).all()) {
-      any |= Visit(view, sat, level - 1, child);
+    if (!(child.array() < child_dims.array()).all()) continue;
+    const bool occupied = level == 1 ? bricks_[BrickIndex(child)] != 0
+                                     : alive_[level - 1][NodeIndex(level - 1, child)] != 0;
+    if (!occupied) continue;
+    const Eigen::Vector3i lo = child * size;
+    const Eigen::Vector3i hi =
+        (lo + Eigen::Vector3i::Constant(size - 1)).cwiseMin(grid_.dims - Eigen::Vector3i::Ones());
+    AddBox(&boxes, count, lo, hi);
+    children[count++] = child;
+  }
+  for (int i = count; i < BoxBatch::kSize; ++i)
+    AddBox(&boxes, i, Eigen::Vector3i::Zero(), Eigen::Vector3i::Zero());
+  ProjectedRect rects[BoxBatch::kSize];
+  RectsOfBoxes(view.pixel_from_object, boxes, rects);
+  bool any = false;
+  for (int i = 0; i < count; ++i) {
+    const BlockClass child_class = ClassifyRect(view, sat, rects[i]);
+    switch (child_class) {
+      case BlockClass::kUnaffected:
+        any = true;
+        break;
+      case BlockClass::kCarve:
+        ClearBlock(level - 1, children[i]);
+        break;
+      case BlockClass::kMixed:
+      case BlockClass::kMixedInImage:
+        any |= Visit(view, sat, level - 1, children[i], child_class);
+        break;
     }
   }
   alive_[level][NodeIndex(level, node)] = any ? 1 : 0;
@@ -499,7 +530,22 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
     return std::unexpected(data.error());
   }
   const Sat sat = MakeSat(*data);
-  Visit(*data, sat, static_cast<int>(level_dims_.size()) - 1, Eigen::Vector3i::Zero());
+  // The root: the whole grid.
+  const int root = static_cast<int>(level_dims_.size()) - 1;
+  if (root == 0 ? bricks_[0] != 0 : alive_[root][0] != 0) {
+    BoxBatch boxes;
+    for (int i = 0; i < BoxBatch::kSize; ++i) {
+      AddBox(&boxes, i, Eigen::Vector3i::Zero(), grid_.dims - Eigen::Vector3i::Ones());
+    }
+    ProjectedRect rects[BoxBatch::kSize];
+    RectsOfBoxes(data->pixel_from_object, boxes, rects);
+    const BlockClass root_class = ClassifyRect(*data, sat, rects[0]);
+    if (root_class == BlockClass::kCarve) {
+      ClearBlock(root, Eigen::Vector3i::Zero());
+    } else if (root_class != BlockClass::kUnaffected) {
+      Visit(*data, sat, root, Eigen::Vector3i::Zero(), root_class);
+    }
+  }
   views_.push_back(std::move(*data));
   return {};
 }

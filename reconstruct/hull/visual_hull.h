@@ -139,9 +139,6 @@ class VisualHull {
   bool PointSurvives(const ViewData& view, const Eigen::Vector3d& point_mm) const;
   static bool SurvivesProjected(const ViewData& view, double x, double y, double w);
   static Sat MakeSat(const ViewData& view);
-  // How `view` acts on the voxel centres lo..hi (inclusive).
-  BlockClass Classify(const ViewData& view, const Sat& sat, const Eigen::Vector3i& lo,
-                      const Eigen::Vector3i& hi) const;
   // How `view` acts on the convex hull of points given by their projections P * [X; 1]
   // (x, y, w); count <= 8.
   static BlockClass ClassifyProjected(const ViewData& view, const Sat& sat,
@@ -156,7 +153,18 @@ class VisualHull {
     int in_front = 0;
     int behind = 0;
   };
+  // How `view` acts on a block whose points project as `rect` says.
   static BlockClass ClassifyRect(const ViewData& view, const Sat& sat, const ProjectedRect& rect);
+  // Boxes of voxel centres (middle and half extents, mm), 8 at a time.
+  struct BoxBatch {
+    static constexpr int kSize = 8;
+    double cx[kSize], cy[kSize], cz[kSize];
+    double ex[kSize], ey[kSize], ez[kSize];
+  };
+  // Slot i of `boxes`: the box of the centres of voxels lo..hi (inclusive).
+  void AddBox(BoxBatch* boxes, int i, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) const;
+  // A rectangle (ProjectedRect) holding the projection of each box.
+  static void RectsOfBoxes(const Matrix34d& p, const BoxBatch& boxes, ProjectedRect* rects);
   // Where every cut edge first leaves the hull (see ExtractSurface).
   std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges,
                                    std::optional<double> clip_below_z_mm, bool cull_views) const;
@@ -169,7 +177,9 @@ class VisualHull {
   static double WalkCells(const ViewData& view, double hx, double hy, double hw, const double* hd,
                           double t_max, int iu, int iv, int end_u, int end_v);
   // Returns whether the block still holds occupied voxels.
-  bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node);
+  // Carves a block whose class in this view is `block_class` (kMixed or kMixedInImage).
+  bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node,
+             BlockClass block_class);
   void ClearBlock(int level, const Eigen::Vector3i& node);
   // kInImage: every voxel centre's nearest pixel is known to lie inside the image.
   template <bool kInImage>
