@@ -253,28 +253,6 @@ void VisualHull::AddBox(BoxBatch* boxes, int i, const Eigen::Vector3i& lo,
   boxes->ez[i] = 0.5 * (h.z() - l.z());
 }
 
-VisualHull::BlockClass VisualHull::ClassifyProjected(const ViewData& view, const Sat& sat,
-                                                     const double (*projected)[3], int count) {
-  ProjectedRect rect;
-  for (int c = 0; c < count; ++c) {
-    const Homogeneous h{projected[c][0], projected[c][1], projected[c][2]};
-    if (!(h.w > 0.0)) {
-      ++rect.behind;
-      continue;
-    }
-    ++rect.in_front;
-    // One division: x * (1 / w) differs from x / w by an ulp or two, far inside kRectMarginPx.
-    const double inv_w = 1.0 / h.w;
-    const double u = h.x * inv_w;
-    const double v = h.y * inv_w;
-    rect.u_min = std::min(rect.u_min, u);
-    rect.u_max = std::max(rect.u_max, u);
-    rect.v_min = std::min(rect.v_min, v);
-    rect.v_max = std::max(rect.v_max, v);
-  }
-  return ClassifyRect(view, sat, rect);
-}
-
 VisualHull::BlockClass VisualHull::ClassifyRect(const ViewData& view, const Sat& sat,
                                                 const ProjectedRect& rect) {
   if (rect.in_front == 0) {
@@ -847,7 +825,7 @@ class PackedMask {
   }
 
   // Whether every point of the convex hull of 8 points (their projections P * [X; 1]) that
-  // the view sees lands on the silhouette: ClassifyProjected's kUnaffected.
+  // the view sees lands on the silhouette: ClassifyRect's kUnaffected.
   bool AllOnOrUnseen(const double (*projected)[3], int width, int height) const {
     double u_min = std::numeric_limits<double>::infinity();
     double v_min = u_min, u_max = -u_min, v_max = -u_min;

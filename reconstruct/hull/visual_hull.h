@@ -139,10 +139,6 @@ class VisualHull {
   bool PointSurvives(const ViewData& view, const Eigen::Vector3d& point_mm) const;
   static bool SurvivesProjected(const ViewData& view, double x, double y, double w);
   static Sat MakeSat(const ViewData& view);
-  // How `view` acts on the convex hull of points given by their projections P * [X; 1]
-  // (x, y, w); count <= 8.
-  static BlockClass ClassifyProjected(const ViewData& view, const Sat& sat,
-                                      const double (*projected)[3], int count);
   // A block's projection: the rectangle (px) that holds the projections of its points in front
   // of the camera, and whether some are behind it (in_front + behind > 0).
   struct ProjectedRect {
