@@ -453,8 +453,9 @@ bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level, const Ei
     AddBox(&boxes, count, lo, hi);
     children[count++] = child;
   }
-  for (int i = count; i < BoxBatch::kSize; ++i)
-    AddBox(&boxes, i, Eigen::Vector3i::Zero(), Eigen::Vector3i::Zero());
+  for (int i = count; i < BoxBatch::kSize; ++i) {
+    AddBox(&boxes, i, Eigen::Vector3i::Zero(), Eigen::Vector3i::Zero());  // unused
+  }
   ProjectedRect rects[BoxBatch::kSize];
   RectsOfBoxes(view.pixel_from_object, boxes, rects);
   bool any = false;
@@ -512,8 +513,9 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
   const int root = static_cast<int>(level_dims_.size()) - 1;
   if (root == 0 ? bricks_[0] != 0 : alive_[root][0] != 0) {
     BoxBatch boxes;
-    for (int i = 0; i < BoxBatch::kSize; ++i) {
-      AddBox(&boxes, i, Eigen::Vector3i::Zero(), grid_.dims - Eigen::Vector3i::Ones());
+    AddBox(&boxes, 0, Eigen::Vector3i::Zero(), grid_.dims - Eigen::Vector3i::Ones());
+    for (int i = 1; i < BoxBatch::kSize; ++i) {
+      AddBox(&boxes, i, Eigen::Vector3i::Zero(), Eigen::Vector3i::Zero());  // unused
     }
     ProjectedRect rects[BoxBatch::kSize];
     RectsOfBoxes(data->pixel_from_object, boxes, rects);

@@ -172,8 +172,9 @@ class VisualHull {
   // = hd, from the nearest pixel (iu, iv) of a to that (end_u, end_v) of a + t_max d.
   static double WalkCells(const ViewData& view, double hx, double hy, double hw, const double* hd,
                           double t_max, int iu, int iv, int end_u, int end_v);
+  // Carves an occupied block whose class in this view is `block_class` (kMixed or
+  // kMixedInImage): its children are classified together, and only the mixed ones visited.
   // Returns whether the block still holds occupied voxels.
-  // Carves a block whose class in this view is `block_class` (kMixed or kMixedInImage).
   bool Visit(const ViewData& view, const Sat& sat, int level, const Eigen::Vector3i& node,
              BlockClass block_class);
   void ClearBlock(int level, const Eigen::Vector3i& node);
