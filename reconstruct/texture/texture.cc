@@ -70,6 +70,125 @@ struct ViewGeometry {
   }
 };
 
+// What a view needs to know of candidate points (SoA, `count` of them): inputs x, y, z (the
+// position) and nx, ny, nz (the unit normal); outputs, for each point, the cosine between its
+// normal and the direction to the camera (n . ViewGeometry::ToCamera(X)), its pixel (u, v)
+// (ViewGeometry::Project; meaningless unless in_front) and whether it is in front of the camera,
+// its depth (ViewGeometry::Depth), how far behind its depth cell it may lie and still be seen
+// (edge_term + cell_term * the tangent of its angle to the camera, at most max_tan), and its
+// blending weight cos^8.
+struct PointTerms {
+  const float *x, *y, *z, *nx, *ny, *nz;
+  float *cos_angle, *u, *v, *depth, *tolerance, *weight;
+  int* in_front;
+};
+
+// PointTerms for `count` points in view g: the same operations in the same order as the
+// functions named there and Eigen's dot (x + (y + z)), so the same values; vectorised loops,
+// built for AVX2 too where the processor has it (AVX2 brings no fused multiply-add).
+#if defined(__x86_64__) && defined(__GNUC__)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void ComputePointTerms(const ViewGeometry& g, float max_tan, float edge_term, float cell_term,
+                       int count, const PointTerms& t) {
+  const float* __restrict x = t.x;
+  const float* __restrict y = t.y;
+  const float* __restrict z = t.z;
+  const float* __restrict nx = t.nx;
+  const float* __restrict ny = t.ny;
+  const float* __restrict nz = t.nz;
+  float* __restrict cos_angle = t.cos_angle;
+  if (g.affine) {
+    const float tx = g.direction.x(), ty = g.direction.y(), tz = g.direction.z();
+    for (int i = 0; i < count; ++i) cos_angle[i] = nx[i] * tx + (ny[i] * ty + nz[i] * tz);
+  } else {
+    const float ox = g.centre.x(), oy = g.centre.y(), oz = g.centre.z();
+    for (int i = 0; i < count; ++i) {
+      const float dx = ox - x[i], dy = oy - y[i], dz = oz - z[i];
+      const float squared = dx * dx + dy * dy + dz * dz;
+      const float inv = squared > 0.0f ? 1.0f / std::sqrt(squared) : 0.0f;
+      cos_angle[i] = nx[i] * (dx * inv) + (ny[i] * (dy * inv) + nz[i] * (dz * inv));
+    }
+  }
+  const float p00 = g.p(0, 0), p01 = g.p(0, 1), p02 = g.p(0, 2), p03 = g.p(0, 3);
+  const float p10 = g.p(1, 0), p11 = g.p(1, 1), p12 = g.p(1, 2), p13 = g.p(1, 3);
+  const float p20 = g.p(2, 0), p21 = g.p(2, 1), p22 = g.p(2, 2), p23 = g.p(2, 3);
+  const float r0 = g.depth_row[0], r1 = g.depth_row[1], r2 = g.depth_row[2], r3 = g.depth_row[3];
+  float* __restrict u = t.u;
+  float* __restrict v = t.v;
+  float* __restrict depth = t.depth;
+  float* __restrict tolerance = t.tolerance;
+  float* __restrict weight = t.weight;
+  int* __restrict in_front = t.in_front;
+  for (int i = 0; i < count; ++i) {
+    const float hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
+    in_front[i] = static_cast<int>(hw > 0.0f);
+    u[i] = (p00 * x[i] + p01 * y[i] + p02 * z[i] + p03) / hw;
+    v[i] = (p10 * x[i] + p11 * y[i] + p12 * z[i] + p13) / hw;
+    depth[i] = (r0 * x[i] + (r1 * y[i] + r2 * z[i])) + r3;
+    const float c = cos_angle[i];
+    const float tan_angle =
+        std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - c * c)) / std::max(c, 1e-3f));
+    tolerance[i] = edge_term + cell_term * tan_angle;
+    const float c2 = c * c;
+    const float c4 = c2 * c2;
+    weight[i] = c4 * c4;
+  }
+}
+
+// A window of depth cells: cell_px-wide cells over the image (all_cols x all_rows), of which
+// the window [c0, c0 + cols) x [r0, r0 + rows) is stored.
+struct CellGrid {
+  float inv_cell;
+  int all_cols, all_rows;
+  int c0, r0, cols, rows;
+};
+
+// For each point i (coordinates x, y, z; normal nx, ny, nz): its cell in the window (row-major
+// index), or -1 when its normal does not face `toward` within `margin` (n . toward >= -margin),
+// it is behind the camera or outside the window; and its depth depth_row . [X; 1]. One loop,
+// vectorised; built for AVX2 too where the processor has it (the same results: each lane does
+// the same operations, and AVX2 brings no fused multiply-add).
+#if defined(__x86_64__) && defined(__GNUC__)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void CellsOfPoints(const Eigen::Matrix<float, 3, 4>& p, const Eigen::Vector4f& depth_row,
+                   const Eigen::Vector3f& toward, float margin, const CellGrid& grid,
+                   const float* __restrict x, const float* __restrict y,
+                   const float* __restrict z, const float* __restrict nx,
+                   const float* __restrict ny, const float* __restrict nz, int count,
+                   int* __restrict cell_of, float* __restrict depth_of) {
+  const float p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
+  const float p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
+  const float p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
+  const float r0 = depth_row[0], r1 = depth_row[1], r2 = depth_row[2], r3 = depth_row[3];
+  const float dx = toward.x(), dy = toward.y(), dz = toward.z();
+  const float inv_cell = grid.inv_cell;
+  const float all_cols = static_cast<float>(grid.all_cols);
+  const float all_rows = static_cast<float>(grid.all_rows);
+  const int c0 = grid.c0, w0 = grid.r0, cols = grid.cols, rows = grid.rows;
+  for (int i = 0; i < count; ++i) {
+    const float facing = nx[i] * dx + ny[i] * dy + nz[i] * dz;
+    const float hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
+    const float inv = 1.0f / hw;
+    const float u = (p00 * x[i] + p01 * y[i] + p02 * z[i] + p03) * inv;
+    const float v = (p10 * x[i] + p11 * y[i] + p12 * z[i] + p13) * inv;
+    // DepthCells::Cell(): (px + 0.5) / cell_px, its integer part when in [0, n).
+    const float cu = (u + 0.5f) * inv_cell;
+    const float cv = (v + 0.5f) * inv_cell;
+    // Bitwise tests and clamps (NaN to 0) rather than branches, so the loop vectorises.
+    const int seen = static_cast<int>(facing >= -margin) & static_cast<int>(hw > 0.0f) &
+                     static_cast<int>(cu >= 0.0f) & static_cast<int>(cv >= 0.0f) &
+                     static_cast<int>(cu < all_cols) & static_cast<int>(cv < all_rows);
+    const int c = static_cast<int>(std::min(std::max(0.0f, cu), all_cols)) - c0;
+    const int r = static_cast<int>(std::min(std::max(0.0f, cv), all_rows)) - w0;
+    const int in_window = seen & static_cast<int>(c >= 0) & static_cast<int>(r >= 0) &
+                          static_cast<int>(c < cols) & static_cast<int>(r < rows);
+    cell_of[i] = in_window != 0 ? r * cols + c : -1;
+    depth_of[i] = r0 * x[i] + r1 * y[i] + r2 * z[i] + r3;
+  }
+}
+
 // The nearest depth of the vertices facing the camera in each cell of cell_px x cell_px pixels.
 // Only the cells of `window` (pixels; the mesh's projection) are stored: the others hold no
 // vertex, so they read as infinitely far, as they would in a full table (and the table stays
@@ -88,6 +207,7 @@ class DepthCells {
     cols_ = c1 - c0_ + 1;
     rows_ = r1 - r0_ + 1;
     depth_.assign(static_cast<std::size_t>(cols_) * rows_, std::numeric_limits<float>::infinity());
+    marked_.assign(depth_.size(), 0);
   }
   // Splat of every point i (coordinates x, y, z) whose normal (nx, ny, nz) faces `toward`
   // within `margin` (n . toward >= -margin) and that lies in front of the camera, at the pixel
@@ -102,33 +222,9 @@ class DepthCells {
     depth->resize(count);
     int* __restrict cell_of = index->data();
     float* __restrict depth_of = depth->data();
-    const float p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
-    const float p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
-    const float p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
-    const float r0 = depth_row[0], r1 = depth_row[1], r2 = depth_row[2], r3 = depth_row[3];
-    const float dx = toward.x(), dy = toward.y(), dz = toward.z();
-    const float all_cols = static_cast<float>(all_cols_);
-    const float all_rows = static_cast<float>(all_rows_);
-    for (int i = 0; i < count; ++i) {
-      const float facing = nx[i] * dx + ny[i] * dy + nz[i] * dz;
-      const float hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
-      const float inv = 1.0f / hw;
-      const float u = (p00 * x[i] + p01 * y[i] + p02 * z[i] + p03) * inv;
-      const float v = (p10 * x[i] + p11 * y[i] + p12 * z[i] + p13) * inv;
-      // Cell(): (px + 0.5) / cell_px, its integer part when in [0, n).
-      const float cu = (u + 0.5f) * inv_cell_;
-      const float cv = (v + 0.5f) * inv_cell_;
-      // Bitwise tests and clamps (NaN to 0) rather than branches, so the loop vectorises.
-      const int seen = static_cast<int>(facing >= -margin) & static_cast<int>(hw > 0.0f) &
-                       static_cast<int>(cu >= 0.0f) & static_cast<int>(cv >= 0.0f) &
-                       static_cast<int>(cu < all_cols) & static_cast<int>(cv < all_rows);
-      const int c = static_cast<int>(std::min(std::max(0.0f, cu), all_cols)) - c0_;
-      const int r = static_cast<int>(std::min(std::max(0.0f, cv), all_rows)) - r0_;
-      const int in_window = seen & static_cast<int>(c >= 0) & static_cast<int>(r >= 0) &
-                            static_cast<int>(c < cols_) & static_cast<int>(r < rows_);
-      cell_of[i] = in_window != 0 ? r * cols_ + c : -1;
-      depth_of[i] = r0 * x[i] + r1 * y[i] + r2 * z[i] + r3;
-    }
+    const CellGrid grid{inv_cell_, all_cols_, all_rows_, c0_, r0_, cols_, rows_};
+    CellsOfPoints(p, depth_row, toward, margin, grid, x, y, z, nx, ny, nz, count, cell_of,
+                  depth_of);
     for (int i = 0; i < count; ++i) {
       if (cell_of[i] >= 0) {
         float& cell = depth_[static_cast<std::size_t>(cell_of[i])];
@@ -136,11 +232,41 @@ class DepthCells {
       }
     }
   }
-  // Whether a point projecting into [u_min, u_max] x [v_min, v_max] (finite) can land in the
-  // window (widened by a pixel against the rounding of projections).
-  bool Overlaps(float u_min, float v_min, float u_max, float v_max) const {
-    return Cell(u_max + 1.0f, all_cols_) >= c0_ && Cell(u_min - 1.0f, all_cols_) < c0_ + cols_ &&
-           Cell(v_max + 1.0f, all_rows_) >= r0_ && Cell(v_min - 1.0f, all_rows_) < r0_ + rows_;
+  // Marks the cell a point at pixel (u, v) reads (At). Once every such point is marked and
+  // EndMarks called, AnyMarked tells whether a point projecting into [u_min, u_max] x
+  // [v_min, v_max] (finite; widened by a pixel against the rounding of projections) can land in
+  // a marked cell: only the depths of those are read.
+  void Mark(float u, float v) {
+    const int c = std::clamp(Cell(u, all_cols_), 0, all_cols_ - 1) - c0_;
+    const int r = std::clamp(Cell(v, all_rows_), 0, all_rows_ - 1) - r0_;
+    if (c < 0 || r < 0 || c >= cols_ || r >= rows_) return;
+    marked_[static_cast<std::size_t>(r) * cols_ + c] = 1;
+  }
+  void EndMarks() {
+    // Summed-area table, one row and column of zeros first.
+    const std::size_t stride = static_cast<std::size_t>(cols_) + 1;
+    marked_sums_.assign(stride * (rows_ + 1), 0);
+    for (int r = 0; r < rows_; ++r) {
+      int row_sum = 0;
+      for (int c = 0; c < cols_; ++c) {
+        row_sum += marked_[static_cast<std::size_t>(r) * cols_ + c];
+        marked_sums_[(r + 1) * stride + c + 1] = marked_sums_[r * stride + c + 1] + row_sum;
+      }
+    }
+  }
+  bool AnyMarked(float u_min, float v_min, float u_max, float v_max) const {
+    const int c0 = std::max(Cell(u_min - 1.0f, all_cols_), 0) - c0_;
+    const int c1 = std::min(Cell(u_max + 1.0f, all_cols_), all_cols_ - 1) - c0_;
+    const int r0 = std::max(Cell(v_min - 1.0f, all_rows_), 0) - r0_;
+    const int r1 = std::min(Cell(v_max + 1.0f, all_rows_), all_rows_ - 1) - r0_;
+    const int lo_c = std::max(c0, 0), hi_c = std::min(c1, cols_ - 1);
+    const int lo_r = std::max(r0, 0), hi_r = std::min(r1, rows_ - 1);
+    if (lo_c > hi_c || lo_r > hi_r) return false;
+    const std::size_t stride = static_cast<std::size_t>(cols_) + 1;
+    const int sum = marked_sums_[(hi_r + 1) * stride + hi_c + 1] -
+                    marked_sums_[lo_r * stride + hi_c + 1] -
+                    marked_sums_[(hi_r + 1) * stride + lo_c] + marked_sums_[lo_r * stride + lo_c];
+    return sum > 0;
   }
   float At(float u, float v) const {
     const int c = std::clamp(Cell(u, all_cols_), 0, all_cols_ - 1) - c0_;
@@ -165,9 +291,11 @@ class DepthCells {
   int cols_ = 0;
   int rows_ = 0;
   std::vector<float> depth_;
+  std::vector<std::uint8_t> marked_;
+  std::vector<int> marked_sums_;
 };
 
-Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
+[[gnu::always_inline]] inline Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
   const float x = std::clamp(u, 0.0f, static_cast<float>(bgr.cols - 1));
   const float y = std::clamp(v, 0.0f, static_cast<float>(bgr.rows - 1));
   const int x0 = std::min(static_cast<int>(x), bgr.cols - 2 < 0 ? 0 : bgr.cols - 2);
@@ -389,6 +517,16 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   // the views ranked for its centre, and a normal takes its bin's views, rescored with itself.
   constexpr int kBins = 48;  // per cube face side (under 2 degrees)
   std::vector<Candidates> bins(std::size_t{6} * kBins * kBins);
+  std::vector<int> used_views;  // those with an image, and their directions
+  std::vector<float> used_x, used_y, used_z;
+  for (int k = 0; k < nviews; ++k) {
+    if (images[k].empty()) continue;
+    used_views.push_back(k);
+    used_x.push_back(view_direction[k].x());
+    used_y.push_back(view_direction[k].y());
+    used_z.push_back(view_direction[k].z());
+  }
+  std::vector<float> used_score(used_views.size());
   for (int face = 0; face < 6; ++face) {
     for (int bt = 0; bt < kBins; ++bt) {
       for (int bs = 0; bs < kBins; ++bs) {
@@ -408,12 +546,17 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
             break;
         }
         n.normalize();
-        Candidates& c = bins[(face * kBins + bt) * kBins + bs];
+        // The scores first (one loop the compiler vectorises; the products summed in the order
+        // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
+        for (std::size_t j = 0; j < used_views.size(); ++j) {
+          used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
+        }
+        Candidates c;
         c.score.fill(-2.0f);
         c.view.fill(-1);
-        for (int k = 0; k < nviews; ++k) {
-          if (images[k].empty()) continue;
-          const float score = n.dot(view_direction[k]);
+        for (std::size_t j = 0; j < used_views.size(); ++j) {
+          const int k = used_views[j];
+          const float score = used_score[j];
           if (score <= c.score[kCandidates - 1]) continue;
           int slot = kCandidates - 1;
           while (slot > 0 && c.score[slot - 1] < score) {
@@ -424,6 +567,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
           c.score[slot] = score;
           c.view[slot] = static_cast<std::int16_t>(k);
         }
+        bins[(face * kBins + bt) * kBins + bs] = c;
       }
     }
   }
@@ -443,31 +587,34 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     const int bt = std::clamp(static_cast<int>((b + m) * inv), 0, kBins - 1);
     return (face * kBins + bt) * kBins + bs;
   };
+  // The candidates of a normal (x, y, z): its bin's views that may see it, best first.
+  auto rank_one = [&](float x, float y, float z) {
+    Candidates c;
+    c.score.fill(-2.0f);
+    c.view.fill(-1);
+    if (x == 0.0f && y == 0.0f && z == 0.0f) return c;
+    const Candidates& bin = bins[bin_of(x, y, z)];
+    int n = 0;
+    for (int slot = 0; slot < kCandidates; ++slot) {
+      const int k = bin.view[slot];
+      if (k < 0) break;
+      const Eigen::Vector3f& d = view_direction[k];
+      const float score = x * d.x() + y * d.y() + z * d.z();
+      if (score < cos_min - view_margin[k]) continue;
+      int at = n++;
+      while (at > 0 && c.score[at - 1] < score) {
+        c.score[at] = c.score[at - 1];
+        c.view[at] = c.view[at - 1];
+        --at;
+      }
+      c.score[at] = score;
+      c.view[at] = static_cast<std::int16_t>(k);
+    }
+    return c;
+  };
   auto rank = [&](int count, const float* x, const float* y, const float* z) {
     std::vector<Candidates> out(count);
-    for (int i = 0; i < count; ++i) {
-      Candidates& c = out[i];
-      c.score.fill(-2.0f);
-      c.view.fill(-1);
-      if (x[i] == 0.0f && y[i] == 0.0f && z[i] == 0.0f) continue;
-      const Candidates& bin = bins[bin_of(x[i], y[i], z[i])];
-      int n = 0;
-      for (int slot = 0; slot < kCandidates; ++slot) {
-        const int k = bin.view[slot];
-        if (k < 0) break;
-        const Eigen::Vector3f& d = view_direction[k];
-        const float score = x[i] * d.x() + y[i] * d.y() + z[i] * d.z();
-        if (score < cos_min - view_margin[k]) continue;
-        int at = n++;
-        while (at > 0 && c.score[at - 1] < score) {
-          c.score[at] = c.score[at - 1];
-          c.view[at] = c.view[at - 1];
-          --at;
-        }
-        c.score[at] = score;
-        c.view[at] = static_cast<std::int16_t>(k);
-      }
-    }
+    for (int i = 0; i < count; ++i) out[i] = rank_one(x[i], y[i], z[i]);
     return out;
   };
 
@@ -534,39 +681,66 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
       cluster.half_angle = std::acos(std::clamp(min_cos, -1.0f, 1.0f));
     }
   }
-  std::vector<Candidates> vertex_candidates;
-  if (options.vertex_colors) {
-    // Ranked per vertex in the mesh's order (the arrays above are in cluster order).
-    std::vector<float> nx(nv), ny(nv), nz(nv);
-    for (int i = 0; i < nv; ++i) {
-      nx[i] = vertex_normal[i].x();
-      ny[i] = vertex_normal[i].y();
-      nz[i] = vertex_normal[i].z();
+  // Per view, the faces it is a candidate for (slot in the low bits).
+  std::vector<int> face_start(nviews + 1, 0);
+  for (const Candidates& c : face_candidates) {
+    for (int s = 0; s < kCandidates; ++s) {
+      if (c.view[s] >= 0) ++face_start[c.view[s] + 1];
     }
-    vertex_candidates = rank(nv, nx.data(), ny.data(), nz.data());
   }
-  // Per view, the faces and vertices it is a candidate for (slot in the low bits).
-  auto by_view = [&](const std::vector<Candidates>& candidates) {
-    std::vector<int> start(nviews + 1, 0);
-    for (const Candidates& c : candidates) {
+  std::partial_sum(face_start.begin(), face_start.end(), face_start.begin());
+  std::vector<std::int64_t> face_entries(face_start.back());
+  {
+    std::vector<int> fill(face_start.begin(), face_start.end() - 1);
+    for (std::size_t i = 0; i < face_candidates.size(); ++i) {
       for (int s = 0; s < kCandidates; ++s) {
-        if (c.view[s] >= 0) ++start[c.view[s] + 1];
+        const int k = face_candidates[i].view[s];
+        if (k >= 0) face_entries[fill[k]++] = static_cast<std::int64_t>(i) * kCandidates + s;
       }
     }
-    std::partial_sum(start.begin(), start.end(), start.begin());
-    std::vector<std::int64_t> entries(start.back());
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < candidates.size(); ++i) {
-      for (int s = 0; s < kCandidates; ++s) {
-        const int k = candidates[i].view[s];
-        if (k >= 0) entries[fill[k]++] = static_cast<std::int64_t>(i) * kCandidates + s;
-      }
-    }
-    return std::make_pair(std::move(start), std::move(entries));
+  }
+  struct Pending {  // a candidate face to test in a view
+    int index;
+    int slot;    // the face's candidate slot
+    float u, v;  // its pixel
+    float cos_angle;
   };
-  const auto [face_start, face_entries] = by_view(face_candidates);
-  std::pair<std::vector<int>, std::vector<std::int64_t>> vertex_lists;
-  if (options.vertex_colors) vertex_lists = by_view(vertex_candidates);
+  struct Window {  // pixels
+    float u_min = std::numeric_limits<float>::infinity();
+    float v_min = std::numeric_limits<float>::infinity();
+    float u_max = -std::numeric_limits<float>::infinity();
+    float v_max = -std::numeric_limits<float>::infinity();
+    void Add(float u, float v) {
+      u_min = std::min(u_min, u);
+      u_max = std::max(u_max, u);
+      v_min = std::min(v_min, v);
+      v_max = std::max(v_max, v);
+    }
+  };
+  // Per view, the vertices it is a candidate for, in the mesh's order.
+  std::vector<int> vertex_start(nviews + 1, 0);
+  std::vector<int> vertex_entries;
+  if (options.vertex_colors) {
+    std::vector<std::array<std::int16_t, kCandidates>> ranked(nv);
+    for (int vi = 0; vi < nv; ++vi) {
+      const Eigen::Vector3f& n = vertex_normal[vi];
+      ranked[vi] = rank_one(n.x(), n.y(), n.z()).view;
+      for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
+        ++vertex_start[ranked[vi][slot] + 1];
+      }
+    }
+    std::partial_sum(vertex_start.begin(), vertex_start.end(), vertex_start.begin());
+    vertex_entries.resize(vertex_start.back());
+    std::vector<int> fill(vertex_start.begin(), vertex_start.end() - 1);
+    for (int vi = 0; vi < nv; ++vi) {
+      for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
+        vertex_entries[fill[ranked[vi][slot]]++] = vi;
+      }
+    }
+  }
+  // Scratch for a view's candidate vertices: positions and normals, then their PointTerms.
+  std::vector<float> cx, cy, cz, cnx, cny, cnz, c_cos, c_u, c_v, c_depth, c_tolerance, c_weight;
+  std::vector<int> c_front;
 
   // Per view: the depth of the surface facing the camera, splatted from the vertices into cells
   // about 1.5 mean edges wide, then the visibility of the candidates.
@@ -576,14 +750,13 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   std::vector<float> weight_sum(options.vertex_colors ? nv : 0, 0.0f);
   std::vector<int> splat_cell;  // scratch for the splats
   std::vector<float> splat_depth;
-  struct Pending {  // a candidate to test in a view
-    int index;      // face or vertex
-    int slot;       // the face's candidate slot
-    float u, v;     // its pixel
-    float cos_angle;
-  };
   std::vector<Pending> pending_faces;
-  std::vector<Pending> pending_vertices;
+  struct VertexPending {  // a candidate vertex to test in a view, with its PointTerms
+    int index;
+    float u, v;
+    float depth, tolerance, weight;
+  };
+  std::vector<VertexPending> pending_vertices;
   for (int k = 0; k < nviews; ++k) {
     if (images[k].empty()) continue;
     ++stats.views_used;
@@ -600,42 +773,64 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     }
     const int cell_px =
         std::clamp(static_cast<int>(std::ceil(1.5f * mean_edge_mm / mm_per_px)), 1, 16);
-    // The candidates this view may colour (facing it within max_angle_deg, in the image), their
-    // pixels, and the window of depth cells they need.
-    pending_faces.clear();
+    const float cell_mm = cell_px * mm_per_px;
+    // The vertices this view may colour (ranked for it, facing it within max_angle_deg, in its
+    // image), their pixels, and the window of depth cells they need.
+    Window window;
     pending_vertices.clear();
-    float u_min = std::numeric_limits<float>::infinity(), v_min = u_min;
-    float u_max = -u_min, v_max = -u_min;
-    auto add_pending = [&](std::vector<Pending>* list, int index, int slot,
-                           const Eigen::Vector3f& x, float cos_angle) {
-      float u, v;
-      if (cos_angle < cos_min || !g.Project(x, &u, &v) || !g.InImage(u, v)) return;
-      list->push_back(Pending{index, slot, u, v, cos_angle});
-      u_min = std::min(u_min, u);
-      u_max = std::max(u_max, u);
-      v_min = std::min(v_min, v);
-      v_max = std::max(v_max, v);
-    };
+    {
+      const int first = vertex_start[k];
+      const int count = vertex_start[k + 1] - first;
+      for (auto* scratch : {&cx, &cy, &cz, &cnx, &cny, &cnz, &c_cos, &c_u, &c_v, &c_depth,
+                            &c_tolerance, &c_weight}) {
+        scratch->resize(count);
+      }
+      c_front.resize(count);
+      for (int j = 0; j < count; ++j) {
+        const int vi = vertex_entries[first + j];
+        cx[j] = vertices[vi].x();
+        cy[j] = vertices[vi].y();
+        cz[j] = vertices[vi].z();
+        cnx[j] = vertex_normal[vi].x();
+        cny[j] = vertex_normal[vi].y();
+        cnz[j] = vertex_normal[vi].z();
+      }
+      ComputePointTerms(g, max_tan, 2.0f * mean_edge_mm, 4.0f * cell_mm, count,
+                        PointTerms{cx.data(), cy.data(), cz.data(), cnx.data(), cny.data(),
+                                   cnz.data(), c_cos.data(), c_u.data(), c_v.data(), c_depth.data(),
+                                   c_tolerance.data(), c_weight.data(), c_front.data()});
+      pending_vertices.resize(count);
+      int kept = 0;
+      for (int j = 0; j < count; ++j) {
+        if (c_cos[j] < cos_min || !c_front[j] || !g.InImage(c_u[j], c_v[j])) continue;
+        pending_vertices[kept++] = VertexPending{
+            vertex_entries[first + j], c_u[j], c_v[j], c_depth[j], c_tolerance[j], c_weight[j]};
+        window.Add(c_u[j], c_v[j]);
+      }
+      pending_vertices.resize(kept);
+    }
+    // The same for the faces this view may texture.
+    pending_faces.clear();
     for (int e = face_start[k]; e < face_start[k + 1]; ++e) {
       const int i = static_cast<int>(face_entries[e] / kCandidates);
       const int slot = static_cast<int>(face_entries[e] % kCandidates);
       const Eigen::Vector3f to_camera = g.ToCamera(centroid[i]);
       if (Eigen::Vector3f(fnx[i], fny[i], fnz[i]).dot(to_camera) <= 0.0f) continue;
-      add_pending(&pending_faces, i, slot, centroid[i],
-                  Eigen::Vector3f(snx[i], sny[i], snz[i]).dot(to_camera));
-    }
-    if (options.vertex_colors) {
-      for (int e = vertex_lists.first[k]; e < vertex_lists.first[k + 1]; ++e) {
-        const int vi = static_cast<int>(vertex_lists.second[e] / kCandidates);
-        add_pending(&pending_vertices, vi, 0, vertices[vi],
-                    vertex_normal[vi].dot(g.ToCamera(vertices[vi])));
-      }
+      const float cos_angle = Eigen::Vector3f(snx[i], sny[i], snz[i]).dot(to_camera);
+      float u, v;
+      if (cos_angle < cos_min || !g.Project(centroid[i], &u, &v) || !g.InImage(u, v)) continue;
+      pending_faces.push_back(Pending{i, slot, u, v, cos_angle});
+      window.Add(u, v);
     }
     if (pending_faces.empty() && pending_vertices.empty()) continue;
-    DepthCells cells(g.width, g.height, cell_px, u_min, v_min, u_max, v_max);
-    // Every vertex facing the camera (within the margin) and in front of it is splatted; a
-    // cluster whose normals all face away, or whose box projects away from the window, holds
-    // none that lands in the window.
+    DepthCells cells(g.width, g.height, cell_px, window.u_min, window.v_min, window.u_max,
+                     window.v_max);
+    for (const Pending& p : pending_faces) cells.Mark(p.u, p.v);
+    for (const VertexPending& p : pending_vertices) cells.Mark(p.u, p.v);
+    cells.EndMarks();
+    // Every vertex facing the camera (within the margin) and in front of it is splatted into
+    // the cells the candidates read; a cluster whose normals all face away, or whose box
+    // projects away from every such cell, holds none that lands in one.
     const float margin = view_margin[k];
     const float facing_limit = std::acos(std::clamp(-margin, -1.0f, 1.0f)) + 1e-3f;
     for (const Cluster& cluster : clusters) {
@@ -659,13 +854,12 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
         c_v_min = std::min(c_v_min, v);
         c_v_max = std::max(c_v_max, v);
       }
-      if (in_front && !cells.Overlaps(c_u_min, c_v_min, c_u_max, c_v_max)) continue;
+      if (in_front && !cells.AnyMarked(c_u_min, c_v_min, c_u_max, c_v_max)) continue;
       const int count = cluster.end - cluster.begin;
       cells.SplatFacing(g.p, g.depth_row, d, margin, &vx[cluster.begin], &vy[cluster.begin],
                         &vz[cluster.begin], &vnx[cluster.begin], &vny[cluster.begin],
                         &vnz[cluster.begin], count, &splat_cell, &splat_depth);
     }
-    const float cell_mm = cell_px * mm_per_px;
     auto visible = [&](const Eigen::Vector3f& x, const Pending& p) {
       const float tan_angle =
           std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - p.cos_angle * p.cos_angle)) /
@@ -677,13 +871,10 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
       if (!visible(centroid[p.index], p)) continue;
       face_cos[static_cast<std::size_t>(p.index) * kCandidates + p.slot] = p.cos_angle;
     }
-    for (const Pending& p : pending_vertices) {
-      if (!visible(vertices[p.index], p)) continue;
-      const float c2 = p.cos_angle * p.cos_angle;
-      const float c4 = c2 * c2;
-      const float w = c4 * c4;  // cos^8
-      color_sum[p.index] += w * SampleBilinear(image, p.u, p.v);
-      weight_sum[p.index] += w;
+    for (const VertexPending& p : pending_vertices) {
+      if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
+      color_sum[p.index] += p.weight * SampleBilinear(image, p.u, p.v);
+      weight_sum[p.index] += p.weight;
     }
   }
 
