@@ -337,6 +337,14 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
 
   // The cut edge of each vertex, in field coordinates; positions are placed after the pass.
   std::vector<GridEdge> cut_edges;
+  // Room for a surface as large as the field's box (the mesh has about one vertex per unit of
+  // area and two triangles per vertex), so that the arrays are not moved as they grow. Only
+  // the pages written are given memory, so a smaller surface costs only address space.
+  const std::int64_t box_area =
+      2 * (std::int64_t{dims.x()} * dims.y() + std::int64_t{dims.y()} * dims.z() +
+           std::int64_t{dims.x()} * dims.z());
+  cut_edges.reserve(static_cast<std::size_t>(box_area));
+  mesh.faces.reserve(static_cast<std::size_t>(2 * box_area));
   auto make_vertex = [&](const Eigen::Vector3i& p0, int axis) {
     Eigen::Vector3i p1 = p0;
     ++p1[axis];

@@ -988,6 +988,18 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
   Points brick_centre;
   std::vector<Block> blocks;
+  // At most one sample, brick and block per edge: room for them, so that the arrays are not
+  // moved as they grow (only the pages written are given memory).
+  const std::size_t brick_bound = std::min(n, static_cast<std::size_t>(brick_dims_.prod()));
+  samples.reserve(n);
+  brick_start.reserve(brick_bound + 1);
+  blocks.reserve(std::min(n, static_cast<std::size_t>(block_dims.prod())));
+  for (auto [points, size] :
+       {std::pair{&sample_centre, n}, std::pair{&brick_centre, brick_bound}}) {
+    points->x.reserve(size);
+    points->y.reserve(size);
+    points->z.reserve(size);
+  }
   for (std::size_t i = 0; i < n;) {
     std::size_t j = i;
     std::uint8_t axes = 0;
