@@ -894,6 +894,28 @@ void ProjectPoints(const Matrix34d& p, const double* __restrict x, const double*
   }
 }
 
+// The nearest pixel of x (used in front of the camera only; NaN and huge values are clamped so
+// that the conversion is defined).
+inline int NearestPixel(double x) {
+  return static_cast<int>(std::floor((x > -1e9 ? (x < 1e9 ? x : 1e9) : -1e9) + 0.5));
+}
+
+// The nearest pixels (NearestPixel) of `count` points (hx / w, hy / w), as FirstExit computes
+// its end pixel. A loop of its own, apart from the tests that depend on it, so that the
+// divisions of successive points overlap; the AVX2 build (where the processor has it) rounds
+// with one instruction.
+#if defined(__x86_64__) && defined(__GNUC__)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void NearestPixels(const double* __restrict hx, const double* __restrict hy,
+                   const double* __restrict w, std::size_t count, int* __restrict u,
+                   int* __restrict v) {
+  for (std::size_t i = 0; i < count; ++i) {
+    u[i] = NearestPixel(hx[i] / w[i]);
+    v[i] = NearestPixel(hy[i] / w[i]);
+  }
+}
+
 }  // namespace
 
 std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
@@ -1037,9 +1059,14 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   brick_start.push_back(samples.size());
   std::size_t largest_block = 0;  // in samples
   std::size_t most_bricks = 0;
+  std::size_t most_items = 0;
   for (const Block& block : blocks) {
-    largest_block = std::max(largest_block, brick_start[block.end] - brick_start[block.begin]);
+    const std::size_t first = brick_start[block.begin];
+    const std::size_t last = brick_start[block.end];
+    largest_block = std::max(largest_block, last - first);
     most_bricks = std::max(most_bricks, block.end - block.begin);
+    most_items = std::max<std::size_t>(
+        most_items, samples[last - 1].first + samples[last - 1].count - samples[first].first);
   }
   // Per block and view: the bricks' projections, then the samples of the bricks the view may
   // act on (gathered), their projections, and the samples to walk.
@@ -1053,6 +1080,11 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   std::vector<double> sample_hx(largest_block), sample_hy(largest_block), sample_w(largest_block);
   std::vector<double> sample_u(largest_block), sample_v(largest_block);
   std::vector<std::uint32_t> walk(largest_block);
+  // The items of the samples to walk: item, sample (gathered), the part of the segment that
+  // can matter, and its end (P * [X; 1]; then the nearest pixel).
+  std::vector<std::uint32_t> walk_item(most_items), walk_sample(most_items);
+  std::vector<double> walk_t(most_items), end_x(most_items), end_y(most_items), end_w(most_items);
+  std::vector<int> end_u(most_items), end_v(most_items);
   std::vector<double> t_item(n);
   for (std::size_t k = 0; k < n; ++k) t_item[k] = items[k].t_max + 1.0;
   // Per sample, the longest part of its edges that can still hold a crossing (in voxels).
@@ -1159,48 +1191,57 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         walk[walks] = static_cast<std::uint32_t>(g);
         walks += skip ? 0 : 1;
       }
+      // The items of the samples to walk, with the end of the part of their segment that can
+      // matter: only the part before the nearest exit found so far (the walk of the shorter
+      // segment visits a prefix of the same cells, the same result where it matters, and its
+      // end rectangle is smaller, so it more often ends at once).
+      std::size_t m = 0;
       for (std::size_t q = 0; q < walks; ++q) {
         const std::size_t g = walk[q];
         const Sample& sample = samples[gathered_sample[g]];
-        const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
-        const double hx = sample_hx[g];
-        const double hy = sample_hy[g];
-        const double hw = sample_w[g];
-        // The nearest pixel (used in front of the camera only; NaN and huge values are clamped
-        // so that the cast is defined).
-        auto nearest = [](double x) {
-          return static_cast<int>(std::floor((x > -1e9 ? (x < 1e9 ? x : 1e9) : -1e9) + 0.5));
-        };
-        const int iu = nearest(sample_u[g]);
-        const int iv = nearest(sample_v[g]);
         double longest = 0.0;
         for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
           const Item& item = items[k];
-          // Only the part before the nearest exit found so far can matter: the walk of the
-          // shorter segment visits a prefix of the same cells (the same result where it
-          // matters), and its end rectangle is smaller, so it more often ends at once.
           const double t_max = std::min(item.t_max, t_item[k]);
           longest = std::max(longest, t_max);
-          // FirstExit's first test, on the same values: the rectangle of the end pixels.
           const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
-          const double wb = hw + t_max * hd[2];
-          if (hw > 0.0 && wb > 0.0) {
-            const int end_u = static_cast<int>(std::floor((hx + t_max * hd[0]) / wb + 0.5));
-            const int end_v = static_cast<int>(std::floor((hy + t_max * hd[1]) / wb + 0.5));
-            const int u0 = std::max(std::min(iu, end_u), 0);
-            const int u1 = std::min(std::max(iu, end_u), mask.cols - 1);
-            const int v0 = std::max(std::min(iv, end_v), 0);
-            const int v1 = std::min(std::max(iv, end_v), mask.rows - 1);
-            if (packed.AllOn(u0, v0, u1, v1)) continue;
-            t_item[k] =
-                std::min(t_item[k], WalkCells(view, hx, hy, hw, hd, t_max, iu, iv, end_u, end_v));
-            continue;
-          }
-          Eigen::Vector3d d = Eigen::Vector3d::Zero();
-          d[item.axis] = item.sign * grid_.voxel_mm;
-          t_item[k] = std::min(t_item[k], FirstExit(view, a, d, t_max));
+          walk_item[m] = static_cast<std::uint32_t>(k);
+          walk_sample[m] = static_cast<std::uint32_t>(g);
+          walk_t[m] = t_max;
+          end_x[m] = sample_hx[g] + t_max * hd[0];
+          end_y[m] = sample_hy[g] + t_max * hd[1];
+          end_w[m] = sample_w[g] + t_max * hd[2];
+          ++m;
         }
         sample_t[gathered_sample[g]] = longest;
+      }
+      NearestPixels(end_x.data(), end_y.data(), end_w.data(), m, end_u.data(), end_v.data());
+      for (std::size_t r = 0; r < m; ++r) {
+        const std::size_t k = walk_item[r];
+        const std::size_t g = walk_sample[r];
+        const Item& item = items[k];
+        const double t_max = walk_t[r];
+        const double hx = sample_hx[g];
+        const double hy = sample_hy[g];
+        const double hw = sample_w[g];
+        const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+        if (hw > 0.0 && end_w[r] > 0.0) {
+          // FirstExit's first test, on the same values: the rectangle of the end pixels.
+          const int iu = NearestPixel(sample_u[g]);
+          const int iv = NearestPixel(sample_v[g]);
+          const int u0 = std::max(std::min(iu, end_u[r]), 0);
+          const int u1 = std::min(std::max(iu, end_u[r]), mask.cols - 1);
+          const int v0 = std::max(std::min(iv, end_v[r]), 0);
+          const int v1 = std::min(std::max(iv, end_v[r]), mask.rows - 1);
+          if (packed.AllOn(u0, v0, u1, v1)) continue;
+          t_item[k] = std::min(t_item[k],
+                               WalkCells(view, hx, hy, hw, hd, t_max, iu, iv, end_u[r], end_v[r]));
+          continue;
+        }
+        const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[item.axis] = item.sign * grid_.voxel_mm;
+        t_item[k] = std::min(t_item[k], FirstExit(view, a, d, t_max));
       }
     }
   }
