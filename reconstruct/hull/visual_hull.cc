@@ -121,6 +121,35 @@ VisualHull::VisualHull(const VoxelGrid& grid) : grid_(grid) {
   }
 }
 
+namespace {
+
+// mask01 over roi, one bit per pixel (bit x of a row's words is pixel roi.x + x), rows of
+// *words words (one more than needed: a read of a row may take the next word).
+void PackMask(const cv::Mat& mask01, const cv::Rect& roi, std::vector<std::uint64_t>* bits,
+              int* words) {
+  *words = (roi.width + 63) / 64 + 1;
+  bits->assign(static_cast<std::size_t>(*words) * std::max(roi.height, 0), 0);
+  for (int y = 0; y < roi.height; ++y) {
+    const std::uint8_t* row = mask01.ptr<std::uint8_t>(roi.y + y) + roi.x;
+    std::uint64_t* out = &(*bits)[static_cast<std::size_t>(y) * *words];
+    int x = 0;
+    // 8 pixels (0/1 bytes) to 8 bits: each byte gathers its 7 successors' bits above its own.
+    for (; x + 8 <= roi.width; x += 8) {
+      std::uint64_t bytes;
+      std::memcpy(&bytes, row + x, 8);
+      bytes |= bytes >> 7;
+      bytes |= bytes >> 14;
+      bytes |= bytes >> 28;
+      out[x >> 6] |= (bytes & 0xFF) << (x & 63);
+    }
+    for (; x < roi.width; ++x) {
+      out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
+    }
+  }
+}
+
+}  // namespace
+
 Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const View& view) const {
   if (view.width_px <= 0 || view.height_px <= 0) {
     return MakeError(ErrorCode::kBadInput,
@@ -139,6 +168,7 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
   data.pixel_from_object = view.pixel_from_object;
   cv::min(mask, 1, data.mask01);
   data.roi = cv::boundingRect(data.mask01);
+  PackMask(data.mask01, data.roi, &data.packed, &data.packed_words);
   return data;
 }
 
@@ -773,32 +803,14 @@ StepBound MaxStepPx(const Matrix34d& p, const double (*projected)[3], double vox
   return bound;
 }
 
-// A view's silhouette over the bounding rectangle of its non-zero pixels, one bit per pixel
-// (a row fits a few cache lines: the surface tests read it at random).
+// Tests on a view's silhouette packed one bit per pixel over the bounding rectangle of its
+// non-zero pixels (ViewData::packed: a row fits a few cache lines, and the surface tests read
+// it at random).
 class PackedMask {
  public:
-  void Build(const cv::Mat& mask01, const cv::Rect& roi) {
-    roi_ = roi;
-    words_ = (roi.width + 63) / 64 + 1;  // one more: a read of a row may take the next word
-    bits_.assign(static_cast<std::size_t>(words_) * std::max(roi.height, 0), 0);
-    for (int y = 0; y < roi.height; ++y) {
-      const std::uint8_t* row = mask01.ptr<std::uint8_t>(roi.y + y) + roi.x;
-      std::uint64_t* out = &bits_[static_cast<std::size_t>(y) * words_];
-      int x = 0;
-      // 8 pixels (0/1 bytes) to 8 bits: each byte gathers its 7 successors' bits above its own.
-      for (; x + 8 <= roi.width; x += 8) {
-        std::uint64_t bytes;
-        std::memcpy(&bytes, row + x, 8);
-        bytes |= bytes >> 7;
-        bytes |= bytes >> 14;
-        bytes |= bytes >> 28;
-        out[x >> 6] |= (bytes & 0xFF) << (x & 63);
-      }
-      for (; x < roi.width; ++x) {
-        out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
-      }
-    }
-  }
+  // Rows of `words` words from `bits` over `roi` (as PackMask writes them).
+  PackedMask(const cv::Rect& roi, int words, const std::uint64_t* bits)
+      : roi_(roi), words_(words), bits_(bits) {}
   // Whether every pixel of [u0, u1] x [v0, v1] (image pixels; empty: true) is on the
   // silhouette. Pixels outside the rectangle are off.
   bool AllOn(int u0, int v0, int u1, int v1) const {
@@ -869,7 +881,7 @@ class PackedMask {
 
   cv::Rect roi_;
   int words_ = 0;
-  std::vector<std::uint64_t> bits_;
+  const std::uint64_t* bits_ = nullptr;
 };
 
 // P * [X; 1] = (hx, hy, w) and the pixel (u, v) = (hx / w, hy / w) of `count` points (SoA),
@@ -1094,12 +1106,11 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       sample_t[s] = std::max(sample_t[s], items[k].t_max);
     }
   }
-  PackedMask packed;
   for (int v = 0; v < views; ++v) {
     const ViewData& view = views_[v];
     const Matrix34d& p = view.pixel_from_object;
     const cv::Mat& mask = view.mask01;
-    packed.Build(mask, view.roi);
+    const PackedMask packed(view.roi, view.packed_words, view.packed.data());
     // P * d for the six steps (axis, sign), as FirstExit computes it.
     double step_h[3][2][3];
     for (int axis = 0; axis < 3; ++axis) {

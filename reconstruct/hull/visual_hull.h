@@ -127,6 +127,10 @@ class VisualHull {
     Matrix34d pixel_from_object;
     cv::Mat mask01;  // CV_8UC1, 0 or 1
     cv::Rect roi;    // bounding rectangle of the non-zero pixels
+    // mask01 over roi, one bit per pixel, in rows of packed_words words: the surface
+    // placement's tests read it.
+    std::vector<std::uint64_t> packed;
+    int packed_words = 0;
   };
   struct Sat;  // per-view summed-area table, lives only during Integrate or ExtractSurface
   // kMixedInImage: kMixed, with every corner in front of the camera and the rectangle of
