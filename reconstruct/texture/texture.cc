@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -83,49 +84,59 @@ struct PointTerms {
   int* in_front;
 };
 
-// PointTerms for `count` points in view g: the same operations in the same order as the
-// functions named there and Eigen's dot (x + (y + z)), so the same values; vectorised loops,
-// built for AVX2 too where the processor has it (AVX2 brings no fused multiply-add).
+// The loops of ComputePointTerms, each over arrays passed as restrict parameters (so that the
+// compiler vectorises them) and each doing the operations of the functions named there in the
+// same order as they do (Eigen's dot: x + (y + z)), so the same values. Built for AVX2 too where
+// the processor has it (AVX2 brings no fused multiply-add).
 #if defined(__x86_64__) && defined(__GNUC__)
-[[gnu::target_clones("avx2", "default")]]
+#define REVOLVE_AVX2_TOO [[gnu::target_clones("avx2", "default")]]
+#else
+#define REVOLVE_AVX2_TOO
 #endif
-void ComputePointTerms(const ViewGeometry& g, float max_tan, float edge_term, float cell_term,
-                       int count, const PointTerms& t) {
-  const float* __restrict x = t.x;
-  const float* __restrict y = t.y;
-  const float* __restrict z = t.z;
-  const float* __restrict nx = t.nx;
-  const float* __restrict ny = t.ny;
-  const float* __restrict nz = t.nz;
-  float* __restrict cos_angle = t.cos_angle;
-  if (g.affine) {
-    const float tx = g.direction.x(), ty = g.direction.y(), tz = g.direction.z();
-    for (int i = 0; i < count; ++i) cos_angle[i] = nx[i] * tx + (ny[i] * ty + nz[i] * tz);
-  } else {
-    const float ox = g.centre.x(), oy = g.centre.y(), oz = g.centre.z();
-    for (int i = 0; i < count; ++i) {
-      const float dx = ox - x[i], dy = oy - y[i], dz = oz - z[i];
-      const float squared = dx * dx + dy * dy + dz * dz;
-      const float inv = squared > 0.0f ? 1.0f / std::sqrt(squared) : 0.0f;
-      cos_angle[i] = nx[i] * (dx * inv) + (ny[i] * (dy * inv) + nz[i] * (dz * inv));
-    }
+REVOLVE_AVX2_TOO void CosinesToCentre(const Eigen::Vector3f& centre, int count,
+                                      const float* __restrict x, const float* __restrict y,
+                                      const float* __restrict z, const float* __restrict nx,
+                                      const float* __restrict ny, const float* __restrict nz,
+                                      float* __restrict cos_angle) {
+  const float ox = centre.x(), oy = centre.y(), oz = centre.z();
+  for (int i = 0; i < count; ++i) {
+    const float dx = ox - x[i], dy = oy - y[i], dz = oz - z[i];
+    const float squared = dx * dx + dy * dy + dz * dz;
+    // 1 / |d|, or 0 where d = 0 (a mask rather than a branch, so that the loop vectorises).
+    const float inv_length = 1.0f / std::sqrt(squared);
+    const std::uint32_t keep = 0u - static_cast<std::uint32_t>(squared > 0.0f);
+    const float inv = std::bit_cast<float>(std::bit_cast<std::uint32_t>(inv_length) & keep);
+    cos_angle[i] = nx[i] * (dx * inv) + (ny[i] * (dy * inv) + nz[i] * (dz * inv));
   }
-  const float p00 = g.p(0, 0), p01 = g.p(0, 1), p02 = g.p(0, 2), p03 = g.p(0, 3);
-  const float p10 = g.p(1, 0), p11 = g.p(1, 1), p12 = g.p(1, 2), p13 = g.p(1, 3);
-  const float p20 = g.p(2, 0), p21 = g.p(2, 1), p22 = g.p(2, 2), p23 = g.p(2, 3);
-  const float r0 = g.depth_row[0], r1 = g.depth_row[1], r2 = g.depth_row[2], r3 = g.depth_row[3];
-  float* __restrict u = t.u;
-  float* __restrict v = t.v;
-  float* __restrict depth = t.depth;
-  float* __restrict tolerance = t.tolerance;
-  float* __restrict weight = t.weight;
-  int* __restrict in_front = t.in_front;
+}
+REVOLVE_AVX2_TOO void CosinesToDirection(const Eigen::Vector3f& direction, int count,
+                                         const float* __restrict nx, const float* __restrict ny,
+                                         const float* __restrict nz, float* __restrict cos_angle) {
+  const float tx = direction.x(), ty = direction.y(), tz = direction.z();
+  for (int i = 0; i < count; ++i) cos_angle[i] = nx[i] * tx + (ny[i] * ty + nz[i] * tz);
+}
+REVOLVE_AVX2_TOO void PixelsAndDepths(const Eigen::Matrix<float, 3, 4>& p,
+                                      const Eigen::Vector4f& depth_row, int count,
+                                      const float* __restrict x, const float* __restrict y,
+                                      const float* __restrict z, float* __restrict u,
+                                      float* __restrict v, float* __restrict depth,
+                                      int* __restrict in_front) {
+  const float p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
+  const float p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
+  const float p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
+  const float r0 = depth_row[0], r1 = depth_row[1], r2 = depth_row[2], r3 = depth_row[3];
   for (int i = 0; i < count; ++i) {
     const float hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
     in_front[i] = static_cast<int>(hw > 0.0f);
     u[i] = (p00 * x[i] + p01 * y[i] + p02 * z[i] + p03) / hw;
     v[i] = (p10 * x[i] + p11 * y[i] + p12 * z[i] + p13) / hw;
     depth[i] = (r0 * x[i] + (r1 * y[i] + r2 * z[i])) + r3;
+  }
+}
+REVOLVE_AVX2_TOO void TolerancesAndWeights(float max_tan, float edge_term, float cell_term,
+                                           int count, const float* __restrict cos_angle,
+                                           float* __restrict tolerance, float* __restrict weight) {
+  for (int i = 0; i < count; ++i) {
     const float c = cos_angle[i];
     const float tan_angle =
         std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - c * c)) / std::max(c, 1e-3f));
@@ -134,6 +145,18 @@ void ComputePointTerms(const ViewGeometry& g, float max_tan, float edge_term, fl
     const float c4 = c2 * c2;
     weight[i] = c4 * c4;
   }
+}
+
+// PointTerms for `count` points in view g.
+void ComputePointTerms(const ViewGeometry& g, float max_tan, float edge_term, float cell_term,
+                       int count, const PointTerms& t) {
+  if (g.affine) {
+    CosinesToDirection(g.direction, count, t.nx, t.ny, t.nz, t.cos_angle);
+  } else {
+    CosinesToCentre(g.centre, count, t.x, t.y, t.z, t.nx, t.ny, t.nz, t.cos_angle);
+  }
+  PixelsAndDepths(g.p, g.depth_row, count, t.x, t.y, t.z, t.u, t.v, t.depth, t.in_front);
+  TolerancesAndWeights(max_tan, edge_term, cell_term, count, t.cos_angle, t.tolerance, t.weight);
 }
 
 // A window of depth cells: cell_px-wide cells over the image (all_cols x all_rows), of which
@@ -149,15 +172,13 @@ struct CellGrid {
 // it is behind the camera or outside the window; and its depth depth_row . [X; 1]. One loop,
 // vectorised; built for AVX2 too where the processor has it (the same results: each lane does
 // the same operations, and AVX2 brings no fused multiply-add).
-#if defined(__x86_64__) && defined(__GNUC__)
-[[gnu::target_clones("avx2", "default")]]
-#endif
-void CellsOfPoints(const Eigen::Matrix<float, 3, 4>& p, const Eigen::Vector4f& depth_row,
-                   const Eigen::Vector3f& toward, float margin, const CellGrid& grid,
-                   const float* __restrict x, const float* __restrict y,
-                   const float* __restrict z, const float* __restrict nx,
-                   const float* __restrict ny, const float* __restrict nz, int count,
-                   int* __restrict cell_of, float* __restrict depth_of) {
+REVOLVE_AVX2_TOO void CellsOfPoints(const Eigen::Matrix<float, 3, 4>& p,
+                                    const Eigen::Vector4f& depth_row, const Eigen::Vector3f& toward,
+                                    float margin, const CellGrid& grid, const float* __restrict x,
+                                    const float* __restrict y, const float* __restrict z,
+                                    const float* __restrict nx, const float* __restrict ny,
+                                    const float* __restrict nz, int count, int* __restrict cell_of,
+                                    float* __restrict depth_of) {
   const float p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
   const float p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
   const float p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
