@@ -239,6 +239,12 @@ int KeepLargestComponent(Mesh* mesh) {
     sets.Unite(f[0], f[1]);
     sets.Unite(f[1], f[2]);
   }
+  // One set (the common case): one component, nothing to drop.
+  int roots = 0;
+  for (int v = 0; v < vertex_count && roots < 2; ++v) roots += sets.parent[v] == v ? 1 : 0;
+  if (roots == 1) {
+    return 1;
+  }
   std::vector<int> triangles_of_root(vertex_count, 0);
   for (const Eigen::Vector3i& f : mesh->faces) {
     ++triangles_of_root[sets.Find(f[0])];
