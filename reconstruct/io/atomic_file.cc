@@ -5,9 +5,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -30,6 +33,8 @@ fs::path DirectoryOf(const fs::path& path) {
 
 }  // namespace
 
+void AtomicFile::FreeBuffer::operator()(char* p) const { std::free(p); }
+
 AtomicFile::~AtomicFile() {
   if (!temp_.empty()) {
     fd_.Close();
@@ -40,19 +45,47 @@ AtomicFile::~AtomicFile() {
 Expected<void> AtomicFile::Open() {
   std::string name =
       (DirectoryOf(path_) / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
-  const int fd = ::mkstemp(name.data());
+  const int fd = ::mkostemp(name.data(), O_CLOEXEC);
   if (fd < 0) {
     return std::unexpected(IoError(path_, "cannot create the file", errno));
   }
   fd_ = UniqueFd(fd);
   temp_ = name;
   ::fchmod(fd, 0644);
-  buffer_.reserve(kBufferSize);
+  buffer_.reset(static_cast<char*>(std::aligned_alloc(kBlock, kBufferSize)));
+  if (buffer_ == nullptr) {
+    return std::unexpected(IoError(path_, "cannot allocate the write buffer", ENOMEM));
+  }
+  // Refused (EINVAL) by file systems without direct I/O: the page cache it is.
+  const int flags = ::fcntl(fd, F_GETFL);
+  direct_ = flags >= 0 && ::fcntl(fd, F_SETFL, flags | O_DIRECT) == 0;
   return {};
+}
+
+void AtomicFile::Append(std::string_view bytes) {
+  if (!direct_ && bytes.size() >= kUncopiedSize) {
+    // Large blocks (a PNG, a glTF buffer) go to the file without a copy.
+    Flush();
+    WriteAll(bytes);
+    return;
+  }
+  while (!bytes.empty()) {
+    const std::size_t n = std::min(bytes.size(), kBufferSize - end_);
+    std::memcpy(buffer_.get() + end_, bytes.data(), n);
+    end_ += n;
+    bytes.remove_prefix(n);
+    if (end_ == kBufferSize) {
+      Flush();
+    }
+  }
 }
 
 Expected<void> AtomicFile::Commit() {
   Flush();
+  if (end_ > 0) {  // a direct file's last partial block: through the page cache
+    StopDirect();
+    Flush();
+  }
   if (write_errno_ != 0) {
     return std::unexpected(IoError(path_, "cannot write", write_errno_));
   }
@@ -75,8 +108,22 @@ Expected<void> AtomicFile::Commit() {
 }
 
 void AtomicFile::Flush() {
-  WriteAll(buffer_);
-  buffer_.clear();
+  const std::size_t size = direct_ ? end_ / kBlock * kBlock : end_;
+  WriteAll(std::string_view(buffer_.get(), size));
+  if (size > 0) {
+    std::memmove(buffer_.get(), buffer_.get() + size, end_ - size);
+    end_ -= size;
+  }
+}
+
+void AtomicFile::StopDirect() {
+  const int flags = ::fcntl(fd_.get(), F_GETFL);
+  if (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags & ~O_DIRECT) != 0) {
+    if (write_errno_ == 0) {
+      write_errno_ = errno;
+    }
+  }
+  direct_ = false;
 }
 
 void AtomicFile::WriteAll(std::string_view bytes) {
@@ -85,6 +132,10 @@ void AtomicFile::WriteAll(std::string_view bytes) {
     const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
     if (n < 0) {
       if (errno == EINTR) {
+        continue;
+      }
+      if (errno == EINVAL && direct_) {
+        StopDirect();  // alignment or direct I/O refused: again through the page cache
         continue;
       }
       write_errno_ = errno;
@@ -103,23 +154,10 @@ Expected<void> WriteFileAtomically(const fs::path& path, std::string_view bytes)
   return file.Commit();
 }
 
-void AppendFloat(std::string* out, float value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  out->append(buffer, result.ptr);
-}
-
-void AppendInt(std::string* out, long long value) {
-  char buffer[kMaxNumberChars];
-  out->append(buffer, WriteInt(buffer, value));
-}
-
-void AppendFixed(std::string* out, float value, int decimals) {
-  char buffer[kMaxNumberChars];
-  out->append(buffer, WriteFixed(buffer, value, decimals));
-}
-
 namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "the number texts are assembled in words, first character lowest");
 
 // "00" "01" ... "99": two digits per division.
 constexpr char kDigitPairs[] =
@@ -127,59 +165,132 @@ constexpr char kDigitPairs[] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-// Decimal digits of `value`, most significant first, written in place (no copy of a
-// variable length).
-char* WriteUnsigned(char* out, unsigned long long value) {
-  int count = 1;
-  for (unsigned long long bound = 10; count < 20 && value >= bound; bound *= 10) ++count;
-  char* const end = out + count;
-  char* p = end;
-  while (value >= 100) {
-    const auto pair = static_cast<std::size_t>(value % 100);
-    value /= 100;
-    p -= 2;
-    std::memcpy(p, kDigitPairs + 2 * pair, 2);
-  }
-  if (value >= 10) {
-    std::memcpy(p - 2, kDigitPairs + 2 * value, 2);
-  } else {
-    p[-1] = static_cast<char>('0' + value);
-  }
-  return end;
+// Four characters "0000".."9999" of `value` < 10^4 in the low bytes of a word, the first
+// character in the lowest byte (the order they have in memory on this little-endian host).
+inline std::uint64_t FourDigits(std::uint32_t value) {
+  std::uint16_t high;
+  std::uint16_t low;
+  std::memcpy(&high, kDigitPairs + std::size_t{2} * (value / 100), 2);
+  std::memcpy(&low, kDigitPairs + std::size_t{2} * (value % 100), 2);
+  return high | (std::uint64_t{low} << 16);
 }
 
-// WriteFixed with the number of decimals known at compile time (constant divisors).
-// `magnitude`: |value| * 10^kDecimals rounded; `negative`: a minus sign when magnitude > 0.
+// Eight characters "00000000".."99999999" of `value` < 10^8, as FourDigits.
+inline std::uint64_t EightDigits(std::uint32_t value) {
+  return FourDigits(value / 10000) | (FourDigits(value % 10000) << 32);
+}
+
+// The `kWidth` zero-padded digit characters in `digits` without their leading zeros (one digit
+// stays), as a WordText.
+template <int kWidth>
+std::uint64_t Significant(std::uint64_t digits) {
+  constexpr std::uint64_t kZeros = 0x3030303030303030ULL >> (8 * (8 - kWidth));
+  // Zero bytes of `digits ^ kZeros` are '0' characters; the last digit always counts.
+  const int leading =
+      std::countr_zero((digits ^ kZeros) | (std::uint64_t{1} << (8 * (kWidth - 1)))) / 8;
+  return digits >> (8 * leading);
+}
+
+// Writes Significant<kWidth>(digits) at `out` (stores 8 bytes); returns the end of the digits.
+// (Not WriteWordText: counting the leading zeros of `digits` is shorter in the chain of `out`.)
+template <int kWidth>
+char* WriteSignificant(char* out, std::uint64_t digits) {
+  constexpr std::uint64_t kZeros = 0x3030303030303030ULL >> (8 * (8 - kWidth));
+  const int leading =
+      std::countr_zero((digits ^ kZeros) | (std::uint64_t{1} << (8 * (kWidth - 1)))) / 8;
+  digits >>= 8 * leading;
+  std::memcpy(out, &digits, 8);
+  return out + kWidth - leading;
+}
+
+// Decimal digits of `value`, most significant first; may store up to 8 bytes past them.
+char* WriteUnsigned(char* out, unsigned long long value) {
+  if (value < 10000) {
+    return WriteSignificant<4>(out, FourDigits(static_cast<std::uint32_t>(value)));
+  }
+  if (value < 100000000) {
+    return WriteSignificant<8>(out, EightDigits(static_cast<std::uint32_t>(value)));
+  }
+  out = WriteUnsigned(out, value / 100000000);
+  const std::uint64_t low = EightDigits(static_cast<std::uint32_t>(value % 100000000));
+  std::memcpy(out, &low, 8);
+  return out + 8;
+}
+
+// The fraction's `kDecimals` digit characters in `digits` (a word, first digit lowest) written
+// after a '.', trailing '0's dropped; nothing when all are '0'. Stores 8 bytes at `out`.
 template <int kDecimals>
-char* WriteFixedN(char* out, unsigned long long magnitude, bool negative) {
+char* WriteFraction(char* out, std::uint64_t digits) {
+  static_assert(kDecimals >= 1 && kDecimals <= 7);
+  constexpr std::uint64_t kZeros = 0x3030303030303030ULL >> (8 * (8 - kDecimals));
+  const std::uint64_t nonzero = digits ^ kZeros;  // zero bytes: '0' characters
+  const int trailing = std::countl_zero(nonzero << (64 - 8 * kDecimals)) / 8;
+  const std::uint64_t text = '.' | (digits << 8);
+  std::memcpy(out, &text, 8);
+  return out + (nonzero == 0 ? 0 : 1 + kDecimals - trailing);
+}
+
+// WriteFixed with the number of decimals known at compile time (constant factors and divisors).
+template <int kDecimals>
+char* WriteFixedN(char* out, float value) {
   constexpr unsigned long long kScale = [] {
     unsigned long long p = 1;
     for (int d = 0; d < kDecimals; ++d) p *= 10;
     return p;
   }();
-  if (negative && magnitude > 0) {
-    *out++ = '-';
+  const double scaled = static_cast<double>(value) * static_cast<double>(kScale);
+  const double m = std::abs(scaled);
+  if (!(m <= 1e17)) {  // NaN, infinite or too large for the integer path
+    return std::to_chars(out, out + kMaxNumberChars, value).ptr;
   }
-  out = WriteUnsigned(out, magnitude / kScale);
-  unsigned long long fraction = magnitude % kScale;
-  if (fraction == 0) {
-    return out;
+  // m rounded half away from zero, as std::round: below 0.5 it is 0; above, m + 0.5 is exact or
+  // rounds within the same integer, so truncating it rounds m.
+  // NOLINTNEXTLINE(bugprone-incorrect-roundings): the case it warns about (m < 0.5) is excluded.
+  const auto nearest = static_cast<unsigned long long>(static_cast<long long>(m + 0.5));
+  const unsigned long long magnitude = m < 0.5 ? 0 : nearest;
+  *out = '-';
+  out += scaled < 0.0 && magnitude > 0 ? 1 : 0;
+  if constexpr (kDecimals == 0) {
+    return WriteUnsigned(out, magnitude);
+  } else if constexpr (kDecimals <= 7) {
+    if (magnitude < 100000000) {
+      // The common case: all digits from one split, the integer part in the low 8 - kDecimals
+      // characters, the fraction in the high kDecimals.
+      constexpr int kIntegerWidth = 8 - kDecimals;
+      const std::uint64_t digits = EightDigits(static_cast<std::uint32_t>(magnitude));
+      out = WriteSignificant<kIntegerWidth>(
+          out, digits & ((std::uint64_t{1} << (8 * kIntegerWidth)) - 1));
+      return WriteFraction<kDecimals>(out, digits >> (8 * kIntegerWidth));
+    }
+    out = WriteUnsigned(out, magnitude / kScale);
+    const auto fraction = static_cast<std::uint32_t>(magnitude % kScale);
+    if constexpr (kDecimals <= 4) {
+      return WriteFraction<kDecimals>(out, FourDigits(fraction) >> (8 * (4 - kDecimals)));
+    } else {
+      return WriteFraction<kDecimals>(out, EightDigits(fraction) >> (8 * (8 - kDecimals)));
+    }
+  } else {
+    out = WriteUnsigned(out, magnitude / kScale);
+    unsigned long long fraction = magnitude % kScale;
+    if (fraction == 0) {
+      return out;
+    }
+    int digits = kDecimals;
+    while (fraction % 10 == 0) {
+      fraction /= 10;
+      --digits;
+    }
+    *out = '.';
+    int d = digits;
+    for (; d >= 2; d -= 2) {
+      std::memcpy(out + d - 1, kDigitPairs + 2 * (fraction % 100), 2);
+      fraction /= 100;
+    }
+    if (d == 1) {
+      out[1] = static_cast<char>('0' + fraction);
+    }
+    return out + digits + 1;
   }
-  int digits = kDecimals;
-  while (fraction % 10 == 0) {
-    fraction /= 10;
-    --digits;
-  }
-  *out = '.';
-  int d = digits;
-  for (; d >= 2; d -= 2) {
-    std::memcpy(out + d - 1, kDigitPairs + 2 * (fraction % 100), 2);
-    fraction /= 100;
-  }
-  if (d == 1) {
-    out[1] = static_cast<char>('0' + fraction);
-  }
-  return out + digits + 1;
 }
 
 }  // namespace
@@ -193,56 +304,76 @@ char* WriteInt(char* out, long long value) {
 }
 
 char* WriteFixed(char* out, float value, int decimals) {
-  static constexpr double kPow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-  decimals = std::clamp(decimals, 0, 9);
-  const double scaled = static_cast<double>(value) * kPow10[decimals];
-  const double magnitude = std::abs(scaled);
-  if (!(magnitude <= 1e17)) {  // NaN, infinite or too large for the integer path
-    return std::to_chars(out, out + kMaxNumberChars, value).ptr;
-  }
-  // Rounded half away from zero, as std::round: below 0.5 it is 0; above, m + 0.5 is exact or
-  // rounds within the same integer, so truncating it rounds m.
-  // NOLINTNEXTLINE(bugprone-incorrect-roundings): the case it warns about (m < 0.5) is excluded.
-  const auto q = magnitude < 0.5 ? 0ULL : static_cast<unsigned long long>(magnitude + 0.5);
-  const bool negative = scaled < 0.0;
-  switch (decimals) {
+  switch (std::clamp(decimals, 0, 9)) {
     case 0:
-      return WriteFixedN<0>(out, q, negative);
+      return WriteFixedN<0>(out, value);
     case 1:
-      return WriteFixedN<1>(out, q, negative);
+      return WriteFixedN<1>(out, value);
     case 2:
-      return WriteFixedN<2>(out, q, negative);
+      return WriteFixedN<2>(out, value);
     case 3:
-      return WriteFixedN<3>(out, q, negative);
+      return WriteFixedN<3>(out, value);
     case 4:
-      return WriteFixedN<4>(out, q, negative);
+      return WriteFixedN<4>(out, value);
     case 5:
-      return WriteFixedN<5>(out, q, negative);
+      return WriteFixedN<5>(out, value);
     case 6:
-      return WriteFixedN<6>(out, q, negative);
+      return WriteFixedN<6>(out, value);
     case 7:
-      return WriteFixedN<7>(out, q, negative);
+      return WriteFixedN<7>(out, value);
     case 8:
-      return WriteFixedN<8>(out, q, negative);
+      return WriteFixedN<8>(out, value);
     default:
-      return WriteFixedN<9>(out, q, negative);
+      return WriteFixedN<9>(out, value);
   }
 }
 
-void TextOut::Put(std::string_view text) {
-  if (text.size() > kRoomMax) {
-    Flush();
-    file_->Append(text);
-    return;
-  }
-  char* p = Room(text.size());
-  std::memcpy(p, text.data(), text.size());
-  End(p + text.size());
+std::uint64_t WordText(std::string_view text) {
+  const std::size_t size = std::min<std::size_t>(text.size(), 7);
+  std::uint64_t word = std::uint64_t{size} << 56;
+  std::memcpy(&word, text.data(), size);  // the low bytes (little-endian host)
+  return word;
 }
 
-void TextOut::Flush() {
-  file_->Append(std::string_view(buffer_.data(), end_));
-  end_ = 0;
+std::array<std::uint64_t, 256> ChannelTexts(std::string_view prefix) {
+  std::array<std::uint64_t, 256> words;
+  for (int k = 0; k < 256; ++k) {
+    char text[kMaxNumberChars + 8];
+    const std::size_t n = std::min<std::size_t>(prefix.size(), 8);
+    std::memcpy(text, prefix.data(), n);
+    words[k] =
+        WordText(std::string_view(text, WriteFixed(text + n, static_cast<float>(k / 255.0), 4)));
+  }
+  return words;
+}
+
+IndexTexts::IndexTexts(int first, std::size_t count) : first_(first) {
+  if (first < 0 || static_cast<unsigned long long>(first) + count > 10000000) {
+    return;  // a minus sign or 8 digits: formatted on the spot
+  }
+  words_.resize(count);
+  // In runs of equal ten-thousands (value / 10^4): their digits once, then the last four.
+  auto length = [](std::uint64_t text) { return std::uint64_t{8} - std::countl_zero(text) / 8; };
+  const auto begin = static_cast<std::uint32_t>(first);
+  const auto end = static_cast<std::uint32_t>(first + count);
+  std::uint64_t* word = words_.data();
+  for (std::uint32_t value = begin; value < end;) {
+    const std::uint32_t high = value / 10000;
+    const std::uint32_t run_end = std::min(end, (high + 1) * 10000);
+    if (high == 0) {
+      for (; value < run_end; ++value) {
+        const std::uint64_t text = Significant<4>(FourDigits(value));
+        *word++ = text | (length(text) << 56);
+      }
+    } else {
+      const std::uint64_t prefix = Significant<4>(FourDigits(high));
+      const std::uint64_t prefix_length = length(prefix);
+      const std::uint64_t tag = (prefix_length + 4) << 56;
+      for (; value < run_end; ++value) {
+        *word++ = prefix | (FourDigits(value - high * 10000) << (8 * prefix_length)) | tag;
+      }
+    }
+  }
 }
 
 Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {

@@ -274,26 +274,25 @@ Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
   }
   header += fmt::format("element face {}\n", mesh.faces.size());
   header += "property list uchar int vertex_indices\nend_header\n";
-  internal::TextOut out(&file);  // binary records, built in place
-  out.Put(header);
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    char* p = out.Room(15);
-    std::memcpy(p, mesh.vertices[i].data(), 12);
-    p += 12;
-    if (colors) {
-      std::memcpy(p, mesh.colors[i].data(), 3);
-      p += 3;
-    }
-    out.End(p);
+  file.Append(header);
+  if (colors) {
+    file.PutEach(mesh.vertices.size(), 15, [&mesh](char* p, std::size_t i) {
+      std::memcpy(p, mesh.vertices[i].data(), 12);
+      std::memcpy(p + 12, mesh.colors[i].data(), 3);
+      return p + 15;
+    });
+  } else {
+    file.PutEach(mesh.vertices.size(), 12, [&mesh](char* p, std::size_t i) {
+      std::memcpy(p, mesh.vertices[i].data(), 12);
+      return p + 12;
+    });
   }
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    char* p = out.Room(13);
+  static_assert(sizeof(Eigen::Vector3i) == 12, "three packed int32 indices");
+  file.PutEach(mesh.faces.size(), 13, [&mesh](char* p, std::size_t i) {
     *p = 3;
-    static_assert(sizeof(Eigen::Vector3i) == 12, "three packed int32 indices");
-    std::memcpy(p + 1, f.data(), 12);
-    out.End(p + 13);
-  }
-  out.Flush();
+    std::memcpy(p + 1, mesh.faces[i].data(), 12);
+    return p + 13;
+  });
   return file.Commit();
 }
 
@@ -323,62 +322,45 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
       "    ccw TRUE\n"
       "    coord Coordinate {\n"
       "      point [\n";
-  internal::TextOut out(&file);
-  out.Put(text);
-  for (const Eigen::Vector3f& v : mesh.vertices) {
-    char* p = out.Room(4 * internal::kMaxNumberChars);
-    std::copy_n("        ", 8, p);
-    p += 8;
+  // One point, colour or triangle per line, not indented: the lists are most of the file.
+  file.Append(text);
+  constexpr std::size_t kMaxLine = 4 * internal::kMaxNumberChars;
+  file.PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
     for (int k = 0; k < 3; ++k) {
-      if (k > 0) {
-        *p++ = ' ';
-      }
-      p = internal::WriteFixed(p, v[k], 4);
+      p = internal::WriteFixed(p, mesh.vertices[i][k], 4);
+      *p++ = ' ';
     }
-    *p++ = ',';
-    *p++ = '\n';
-    out.End(p);
-  }
-  out.Put("      ]\n    }\n");
+    p[-1] = ',';
+    *p = '\n';
+    return p + 1;
+  });
+  file.Append("      ]\n    }\n");
   if (colors) {
-    out.Put("    colorPerVertex TRUE\n    color Color {\n      color [\n");
-    std::array<std::string, 256> channel;
-    for (int k = 0; k < 256; ++k) {
-      internal::AppendFixed(&channel[k], static_cast<float>(k / 255.0), 4);
-    }
-    for (const Color& c : mesh.colors) {
-      char* p = out.Room(4 * internal::kMaxNumberChars);
-      std::copy_n("        ", 8, p);
-      p += 8;
-      for (int k = 0; k < 3; ++k) {
-        if (k > 0) {
-          *p++ = ' ';
-        }
-        const std::string& t = channel[c[k]];
-        std::copy_n(t.data(), t.size(), p);
-        p += t.size();
-      }
-      *p++ = ',';
-      *p++ = '\n';
-      out.End(p);
-    }
-    out.Put("      ]\n    }\n");
+    file.Append("    colorPerVertex TRUE\n    color Color {\n      color [\n");
+    // The channels' texts once per byte value: "c" for the first, " c" for the others.
+    const std::array<std::uint64_t, 256> first = internal::ChannelTexts("");
+    const std::array<std::uint64_t, 256> other = internal::ChannelTexts(" ");
+    file.PutEach(mesh.colors.size(), kMaxLine, [&](char* p, std::size_t i) {
+      const Color& c = mesh.colors[i];
+      p = internal::WriteWordText(p, first[c[0]]);
+      p = internal::WriteWordText(p, other[c[1]]);
+      p = internal::WriteWordText(p, other[c[2]]);
+      std::copy_n(",\n", 2, p);
+      return p + 2;
+    });
+    file.Append("      ]\n    }\n");
   }
-  out.Put("    coordIndex [\n");
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    char* p = out.Room(4 * internal::kMaxNumberChars);
-    std::copy_n("      ", 6, p);
-    p += 6;
+  file.Append("    coordIndex [\n");
+  const internal::IndexTexts index(0, mesh.vertices.size());
+  file.PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
     for (int k = 0; k < 3; ++k) {
-      p = internal::WriteInt(p, f[k]);
-      *p++ = ',';
+      p = index.Write(p, mesh.faces[i][k]);
       *p++ = ' ';
     }
     std::copy_n("-1,\n", 4, p);
-    out.End(p + 4);
-  }
-  out.Put("    ]\n  }\n}\n  ]\n}\n");
-  out.Flush();
+    return p + 4;
+  });
+  file.Append("    ]\n  }\n}\n  ]\n}\n");
   return file.Commit();
 }
 

@@ -56,8 +56,9 @@ Expected<void> WriteGlb(const Mesh& mesh, const std::filesystem::path& path);
 std::size_t GlbVertexCount(const Mesh& mesh);
 
 // VRML 2.0 (the thesis's output, section 2.4 / Appendix B): one Shape with a Material and an
-// IndexedFaceSet (solid TRUE, coord Coordinate, coordIndex "a, b, c, -1", and colorPerVertex TRUE
-// with a Color node when the mesh has colours), and a NavigationInfo. The Shape sits in a
+// IndexedFaceSet (solid TRUE, coord Coordinate, coordIndex, and colorPerVertex TRUE with a Color
+// node when the mesh has colours), and a NavigationInfo. The lists hold one entry per line, not
+// indented: point "x y z,", color "r g b,", coordIndex "a b c -1,". The Shape sits in a
 // Transform (scale 0.001, rotation -90 deg about x) so VRML viewers, which are metres and y-up,
 // show the object upright at its true size; the point coordinates themselves are the object
 // frame's millimetres, exactly as in the mesh.

@@ -23,6 +23,8 @@ namespace fs = std::filesystem;
 
 static_assert(std::endian::native == std::endian::little,
               "the STL and glTF writers assume a little-endian host");
+static_assert(sizeof(Eigen::Vector3f) == 12 && sizeof(Eigen::Vector3i) == 12,
+              "the glTF writer copies packed triples of floats and of int indices");
 
 using internal::AtomicFile;
 using internal::BadFile;
@@ -44,6 +46,12 @@ void AppendExact(std::string* out, float value) {
   char buffer[40];
   const auto result = std::to_chars(buffer, buffer + sizeof(buffer), static_cast<double>(value));
   out->append(buffer, result.ptr);
+}
+
+// The bytes of a vector of packed values (floats, ints, Eigen vectors of them).
+template <class T>
+std::string_view BytesOf(const std::vector<T>& values) {
+  return {reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T)};
 }
 
 void Pad4(std::string* bytes, char fill) {
@@ -130,62 +138,60 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
       "# revolve model: object frame, millimetres, z up; {} vertices, {} triangles\n"
       "mtllib {}\n",
       mesh.vertices.size(), mesh.faces.size(), mtl_path.filename().string());
-  TextOut out(&file);
-  out.Put(text);
-  // Colour channels as text, once per byte value.
-  std::array<std::string, 256> channel;
-  if (colors) {
-    for (int k = 0; k < 256; ++k) {
-      channel[k] = " ";
-      AppendFixed(&channel[k], static_cast<float>(k / 255.0), 4);
-    }
-  }
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const Eigen::Vector3f& v = mesh.vertices[i];
-    char* p = out.Room(8 * kMaxNumberChars);
+  file.Append(text);
+  // Colour channels and vertex indices as text, once per value.
+  const std::array<std::uint64_t, 256> channel = ChannelTexts(" ");
+  const IndexTexts index(1, mesh.vertices.size());
+  constexpr std::size_t kMaxLine = 8 * kMaxNumberChars;
+  file.PutEach(mesh.vertices.size(), kMaxLine, [&](char* p, std::size_t i) {
     *p++ = 'v';
     for (int k = 0; k < 3; ++k) {
       *p++ = ' ';
-      p = WriteFixed(p, v[k], kMmDecimals);
+      p = WriteFixed(p, mesh.vertices[i][k], kMmDecimals);
     }
     if (colors) {
       for (int k = 0; k < 3; ++k) {
-        const std::string& c = channel[mesh.colors[i][k]];
-        std::copy_n(c.data(), c.size(), p);
-        p += c.size();
+        p = WriteWordText(p, channel[mesh.colors[i][k]]);
       }
     }
-    *p++ = '\n';
-    out.End(p);
-  }
+    *p = '\n';
+    return p + 1;
+  });
   if (textured) {
-    for (const Eigen::Vector2f& uv : mesh.uvs) {
-      char* p = out.Room(4 * kMaxNumberChars);
+    file.PutEach(mesh.uvs.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
       std::copy_n("vt ", 3, p);
-      p = WriteFixed(p + 3, uv.x(), 6);
+      p = WriteFixed(p + 3, mesh.uvs[i].x(), 6);
       *p++ = ' ';
-      p = WriteFixed(p, 1.0f - uv.y(), 6);
-      *p++ = '\n';
-      out.End(p);
-    }
+      p = WriteFixed(p, 1.0f - mesh.uvs[i].y(), 6);
+      *p = '\n';
+      return p + 1;
+    });
   }
-  out.Put(fmt::format("usemtl {}\n", kMaterialName));
-  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
-    const Eigen::Vector3i& f = mesh.faces[i];
-    char* p = out.Room(8 * kMaxNumberChars);
-    *p++ = 'f';
-    for (int c = 0; c < 3; ++c) {
-      *p++ = ' ';
-      p = WriteInt(p, f[c] + 1);
-      if (textured) {
+  file.Append(fmt::format("usemtl {}\n", kMaterialName));
+  if (textured) {
+    const IndexTexts uv_index(1, mesh.uvs.size());
+    file.PutEach(mesh.faces.size(), kMaxLine, [&](char* p, std::size_t i) {
+      *p++ = 'f';
+      for (int c = 0; c < 3; ++c) {
+        *p++ = ' ';
+        p = index.Write(p, mesh.faces[i][c]);
         *p++ = '/';
-        p = WriteInt(p, mesh.uv_faces[i][c] + 1);
+        p = uv_index.Write(p, mesh.uv_faces[i][c]);
       }
-    }
-    *p++ = '\n';
-    out.End(p);
+      *p = '\n';
+      return p + 1;
+    });
+  } else {
+    file.PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
+      *p++ = 'f';
+      for (int c = 0; c < 3; ++c) {
+        *p++ = ' ';
+        p = index.Write(p, mesh.faces[i][c]);
+      }
+      *p = '\n';
+      return p + 1;
+    });
   }
-  out.Flush();
   return file.Commit();
 }
 
@@ -194,12 +200,13 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   const bool colors = !textured && mesh.HasColors();
   const std::vector<Eigen::Vector3f> vertex_normals = VertexNormals(mesh);
 
-  // The vertices as glTF sees them: split by uv where textured.
-  std::vector<int> source;  // glTF vertex -> mesh vertex
-  std::vector<int> uv_of;   // glTF vertex -> uv index (textured)
-  std::vector<std::uint32_t> indices;
-  indices.reserve(mesh.faces.size() * 3);
+  // The vertices as glTF sees them: split by uv where textured, else the mesh's own (written
+  // straight from the mesh's arrays).
+  std::vector<int> source;             // glTF vertex -> mesh vertex (textured)
+  std::vector<int> uv_of;              // glTF vertex -> uv index (textured)
+  std::vector<std::uint32_t> indices;  // (textured)
   if (textured) {
+    indices.reserve(mesh.faces.size() * 3);
     std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
     std::unordered_map<std::uint64_t, int> others;
     for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
@@ -228,18 +235,9 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
         indices.push_back(static_cast<std::uint32_t>(index));
       }
     }
-  } else {
-    source.resize(mesh.vertices.size());
-    for (std::size_t v = 0; v < source.size(); ++v) {
-      source[v] = static_cast<int>(v);
-    }
-    for (const Eigen::Vector3i& f : mesh.faces) {
-      for (int c = 0; c < 3; ++c) {
-        indices.push_back(static_cast<std::uint32_t>(f[c]));
-      }
-    }
   }
-  const std::size_t n = source.size();
+  const std::size_t n = textured ? source.size() : mesh.vertices.size();
+  const std::size_t index_count = 3 * mesh.faces.size();
 
   std::string encoded;
   if (textured && png == nullptr) {
@@ -270,13 +268,20 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   } else if (colors) {
     extra_view = add_view(n * 4, 34962);
   }
-  const int index_view = add_view(indices.size() * 4, 34963);
+  const int index_view = add_view(index_count * 4, 34963);
   const int image_view = textured ? add_view(png->size(), 0) : -1;
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
   Eigen::Vector3f hi = -lo;
-  for (int v : source) {
-    lo = lo.cwiseMin(mesh.vertices[v]);
-    hi = hi.cwiseMax(mesh.vertices[v]);
+  auto include = [&lo, &hi](const Eigen::Vector3f& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  };
+  if (textured) {
+    for (int v : source) {
+      include(mesh.vertices[v]);
+    }
+  } else {
+    std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
   }
 
   std::string json = R"({"asset":{"version":"2.0","generator":"revolve"},"scene":0,)";
@@ -329,7 +334,7 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
           extra_view, n);
     }
     json += fmt::format(R"({{"bufferView":{},"componentType":5125,"count":{},"type":"SCALAR"}}],)",
-                        index_view, indices.size());
+                        index_view, index_count);
     json += R"("bufferViews":[)";
     for (std::size_t i = 0; i < views.size(); ++i) {
       if (i > 0) json += ',';
@@ -361,40 +366,35 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
     add_word(static_cast<std::uint32_t>(bin_size));
     add_word(0x004E4942);  // "BIN\0"
   }
-  internal::TextOut out(&file);  // the binary chunk, built in place
-  out.Put(header);
-  if (has_bin) {
-    for (int v : source) {
-      char* p = out.Room(12);
-      std::memcpy(p, mesh.vertices[v].data(), 12);
-      out.End(p + 12);
-    }
-    for (int v : source) {
-      char* p = out.Room(12);
-      std::memcpy(p, vertex_normals[v].data(), 12);
-      out.End(p + 12);
-    }
-    if (textured) {
-      for (int t : uv_of) {
-        char* p = out.Room(8);
-        std::memcpy(p, mesh.uvs[t].data(), 8);
-        out.End(p + 8);
-      }
-    } else if (colors) {
-      for (int v : source) {
-        char* p = out.Room(4);
-        std::memcpy(p, mesh.colors[v].data(), 3);
+  file.Append(header);
+  if (has_bin && textured) {
+    file.PutEach(n, 12, [&](char* p, std::size_t i) {
+      std::memcpy(p, mesh.vertices[source[i]].data(), 12);
+      return p + 12;
+    });
+    file.PutEach(n, 12, [&](char* p, std::size_t i) {
+      std::memcpy(p, vertex_normals[source[i]].data(), 12);
+      return p + 12;
+    });
+    file.PutEach(n, 8, [&](char* p, std::size_t i) {
+      std::memcpy(p, mesh.uvs[uv_of[i]].data(), 8);
+      return p + 8;
+    });
+    file.Append(BytesOf(indices));
+    file.Append(*png);
+    file.Append(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
+  } else if (has_bin) {
+    file.Append(BytesOf(mesh.vertices));
+    file.Append(BytesOf(vertex_normals));
+    if (colors) {
+      file.PutEach(n, 4, [&mesh](char* p, std::size_t i) {
+        std::memcpy(p, mesh.colors[i].data(), 3);
         p[3] = static_cast<char>(255);
-        out.End(p + 4);
-      }
+        return p + 4;
+      });
     }
-    out.Put(std::string_view(reinterpret_cast<const char*>(indices.data()), indices.size() * 4));
-    if (textured) {
-      out.Put(*png);
-      out.Put(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
-    }
+    file.Append(BytesOf(mesh.faces));  // non-negative int indices: their unsigned int bytes
   }
-  out.Flush();
   return file.Commit();
 }
 
@@ -433,10 +433,9 @@ Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
   header.resize(80, ' ');
   const auto count = static_cast<std::uint32_t>(mesh.faces.size());
   header.append(reinterpret_cast<const char*>(&count), 4);
-  internal::TextOut out(&file);  // binary records, built in place
-  out.Put(header);
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    char* p = out.Room(50);
+  file.Append(header);
+  file.PutEach(mesh.faces.size(), 50, [&mesh](char* p, std::size_t i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
     const Eigen::Vector3f normal = FaceNormal(mesh, f);
     std::memcpy(p, normal.data(), 12);
     for (int c = 0; c < 3; ++c) {
@@ -444,9 +443,8 @@ Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
     }
     p[48] = 0;  // attribute byte count
     p[49] = 0;
-    out.End(p + 50);
-  }
-  out.Flush();
+    return p + 50;
+  });
   return file.Commit();
 }
 

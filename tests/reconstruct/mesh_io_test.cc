@@ -5,7 +5,9 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <limits>
 #include <random>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -208,6 +210,34 @@ TEST_F(MeshIoTest, FailedWriteNamesThePathAndLeavesNoTemporaryFile) {
   }
 }
 
+TEST_F(MeshIoTest, AtomicFileWritesLargeContentExactly) {
+  // Several times the write buffer, not a whole number of blocks, and the three ways in (a small
+  // Append, items built in place, a large Append): every byte arrives, in order.
+  std::mt19937 rng(5);
+  std::string large(3 * (1 << 20) + 12345, '\0');
+  for (char& c : large) c = static_cast<char>(rng());
+  std::string expected = "header\n";
+  for (std::size_t i = 0; i < 200000; ++i) {
+    expected += std::to_string(i) + ' ';
+  }
+  expected += large;
+  internal::AtomicFile file(dir_ / "big.bin");
+  ASSERT_TRUE(file.Open().has_value());
+  file.Append("header\n");
+  file.PutEach(200000, internal::kMaxNumberChars, [](char* p, std::size_t i) {
+    p = internal::WriteInt(p, static_cast<long long>(i));
+    *p = ' ';
+    return p + 1;
+  });
+  file.Append(large);
+  ASSERT_TRUE(file.Commit().has_value());
+  std::ifstream in(dir_ / "big.bin", std::ios::binary);
+  const std::string back((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(back.size(), expected.size());
+  EXPECT_TRUE(back == expected);
+  EXPECT_EQ(Listing(), std::vector<std::string>{"big.bin"});
+}
+
 TEST_F(MeshIoTest, ReadErrorsNameTheFile) {
   Expected<Mesh> mesh = ReadPly(dir_ / "absent.ply");
   ASSERT_FALSE(mesh.has_value());
@@ -240,6 +270,29 @@ TEST_F(MeshIoTest, ReadErrorsNameTheFile) {
   mesh = ReadVrml(dir_ / "junk.wrl");
   ASSERT_FALSE(mesh.has_value());
   EXPECT_NE(mesh.error().message.find("junk.wrl"), std::string::npos);
+}
+
+TEST(TextNumbers, IntegersAndIndexTextsMatchToString) {
+  auto written = [](long long value) {
+    char buffer[internal::kMaxNumberChars];
+    return std::string(buffer, internal::WriteInt(buffer, value));
+  };
+  for (const long long value :
+       {0LL, 9LL, 10LL, 9999LL, 10000LL, 12345678LL, 99999999LL, 100000000LL, -1LL, -10000LL,
+        std::numeric_limits<long long>::max(), std::numeric_limits<long long>::min()}) {
+    EXPECT_EQ(written(value), std::to_string(value));
+  }
+  // The writers' vertex index texts: made in runs of 10^4, formatted on the spot outside the
+  // table and when the table would need 8 digits or a sign.
+  for (const auto& [first, count] :
+       std::vector<std::pair<int, int>>{{0, 123457}, {1, 20001}, {9999990, 20}, {-3, 10}}) {
+    const internal::IndexTexts texts(first, static_cast<std::size_t>(count));
+    for (int i = -2; i < count + 2; ++i) {
+      char buffer[internal::kMaxNumberChars];
+      ASSERT_EQ(std::string(buffer, texts.Write(buffer, i)), std::to_string(first + i))
+          << first << " + " << i;
+    }
+  }
 }
 
 TEST(TextNumbers, FixedDecimalsRoundHalfAwayFromZeroAndDropTrailingZeros) {
