@@ -812,8 +812,9 @@ class PackedMask {
   PackedMask(const cv::Rect& roi, int words, const std::uint64_t* bits)
       : roi_(roi), words_(words), bits_(bits) {}
   // Whether every pixel of [u0, u1] x [v0, v1] (image pixels; empty: true) is on the
-  // silhouette. Pixels outside the rectangle are off.
-  bool AllOn(int u0, int v0, int u1, int v1) const {
+  // silhouette. Pixels outside the rectangle are off. Inlined: the surface placement calls it
+  // about 1.5 million times.
+  [[gnu::always_inline]] bool AllOn(int u0, int v0, int u1, int v1) const {
     if (u0 > u1 || v0 > v1) return true;
     u0 -= roi_.x;
     u1 -= roi_.x;
