@@ -316,7 +316,7 @@ class DepthCells {
   std::vector<int> marked_sums_;
 };
 
-// Four floats in one register (GCC's vector extension; plain code where there are none).
+// Four floats as one value (GCC's vector extension: one register where the processor has them).
 using Float4 = float __attribute__((vector_size(16)));
 
 // SampleBilinear(bgr, u, v) as (b, g, r, 1): each lane does the same operations in the same
@@ -342,24 +342,10 @@ using Float4 = float __attribute__((vector_size(16)));
   return top + fy * (bottom - top);
 }
 
-[[gnu::always_inline]] inline Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
-  const float x = std::clamp(u, 0.0f, static_cast<float>(bgr.cols - 1));
-  const float y = std::clamp(v, 0.0f, static_cast<float>(bgr.rows - 1));
-  const int x0 = std::min(static_cast<int>(x), bgr.cols - 2 < 0 ? 0 : bgr.cols - 2);
-  const int y0 = std::min(static_cast<int>(y), bgr.rows - 2 < 0 ? 0 : bgr.rows - 2);
-  const int x1 = std::min(x0 + 1, bgr.cols - 1);
-  const int y1 = std::min(y0 + 1, bgr.rows - 1);
-  const float fx = x - x0;
-  const float fy = y - y0;
-  const cv::Vec3b* r0 = bgr.ptr<cv::Vec3b>(y0);
-  const cv::Vec3b* r1 = bgr.ptr<cv::Vec3b>(y1);
-  Eigen::Vector3f out;
-  for (int k = 0; k < 3; ++k) {
-    const float top = r0[x0][k] + fx * (r0[x1][k] - r0[x0][k]);
-    const float bottom = r1[x0][k] + fx * (r1[x1][k] - r1[x0][k]);
-    out[k] = top + fy * (bottom - top);
-  }
-  return out;
+// The image's colour (b, g, r) at pixel (u, v), bilinear, clamped to the image.
+Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
+  const Float4 sample = SampleBilinearWithOne(bgr, u, v);
+  return {sample[0], sample[1], sample[2]};
 }
 
 // The (up to 3) faces sharing an edge with each face; -1 for a border edge.
