@@ -542,9 +542,25 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
           distance > mesh_radius ? std::min(1.0f, 1.05f * mesh_radius / distance) : 2.0f;
     }
   }
-  struct Candidates {
+  struct Candidates {  // best first; empty slots: score -2, view -1
     std::array<float, kCandidates> score;
     std::array<std::int16_t, kCandidates> view;
+    Candidates() {
+      score.fill(-2.0f);
+      view.fill(-1);
+    }
+    // Keeps (s, k) if it is among the kCandidates best so far (ties: the earlier first).
+    void Insert(float s, int k) {
+      if (s <= score[kCandidates - 1]) return;
+      int slot = kCandidates - 1;
+      while (slot > 0 && score[slot - 1] < s) {
+        score[slot] = score[slot - 1];
+        view[slot] = view[slot - 1];
+        --slot;
+      }
+      score[slot] = s;
+      view[slot] = static_cast<std::int16_t>(k);
+    }
   };
   // The ranking is looked up: the sphere of directions is binned as a cube map, each bin holds
   // the views ranked for its centre, and a normal takes its bin's views, rescored with itself.
@@ -585,21 +601,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
           used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
         }
         Candidates c;
-        c.score.fill(-2.0f);
-        c.view.fill(-1);
-        for (std::size_t j = 0; j < used_views.size(); ++j) {
-          const int k = used_views[j];
-          const float score = used_score[j];
-          if (score <= c.score[kCandidates - 1]) continue;
-          int slot = kCandidates - 1;
-          while (slot > 0 && c.score[slot - 1] < score) {
-            c.score[slot] = c.score[slot - 1];
-            c.view[slot] = c.view[slot - 1];
-            --slot;
-          }
-          c.score[slot] = score;
-          c.view[slot] = static_cast<std::int16_t>(k);
-        }
+        for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
         bins[(face * kBins + bt) * kBins + bs] = c;
       }
     }
@@ -623,25 +625,16 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   // The candidates of a normal (x, y, z): its bin's views that may see it, best first.
   auto rank_one = [&](float x, float y, float z) {
     Candidates c;
-    c.score.fill(-2.0f);
-    c.view.fill(-1);
     if (x == 0.0f && y == 0.0f && z == 0.0f) return c;
     const Candidates& bin = bins[bin_of(x, y, z)];
-    int n = 0;
     for (int slot = 0; slot < kCandidates; ++slot) {
       const int k = bin.view[slot];
       if (k < 0) break;
       const Eigen::Vector3f& d = view_direction[k];
       const float score = x * d.x() + y * d.y() + z * d.z();
+      // Above -2 (cos_min - margin >= cos 85 deg - 2), so it takes a slot.
       if (score < cos_min - view_margin[k]) continue;
-      int at = n++;
-      while (at > 0 && c.score[at - 1] < score) {
-        c.score[at] = c.score[at - 1];
-        c.view[at] = c.view[at - 1];
-        --at;
-      }
-      c.score[at] = score;
-      c.view[at] = static_cast<std::int16_t>(k);
+      c.Insert(score, k);
     }
     return c;
   };
