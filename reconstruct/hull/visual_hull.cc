@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <numeric>
 
 #include <fmt/format.h>
@@ -728,7 +729,20 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
 
 double VisualHull::WalkCells(const ViewData& view, double hx, double hy, double hw,
                              const double* hd, double t_max, int iu, int iv, int end_u, int end_v) {
-  const cv::Mat& mask = view.mask01;
+  const int cols = view.mask01.cols;
+  const int rows = view.mask01.rows;
+  const cv::Rect& roi = view.roi;
+  // Whether in-image pixel (u, v) is off the silhouette, from the packed bits (which the
+  // callers' tests have just read, so they are in cache): pixels outside roi are off.
+  auto off = [&](int u, int v) {
+    const auto x = static_cast<unsigned>(u - roi.x);
+    const auto y = static_cast<unsigned>(v - roi.y);
+    if (x >= static_cast<unsigned>(roi.width) || y >= static_cast<unsigned>(roi.height)) {
+      return true;
+    }
+    return ((view.packed[static_cast<std::size_t>(y) * view.packed_words + (x >> 6)] >> (x & 63)) &
+            1) == 0;
+  };
   const int su = end_u > iu ? 1 : (end_u < iu ? -1 : 0);
   const int sv = end_v > iv ? 1 : (end_v < iv ? -1 : 0);
   // Parameter where the projection reaches the line u = c (or v = c): x(t) - c w(t) = 0.
@@ -739,8 +753,7 @@ double VisualHull::WalkCells(const ViewData& view, double hx, double hy, double 
   double t = 0.0;
   const int steps = std::abs(end_u - iu) + std::abs(end_v - iv);
   for (int step = 0; step <= steps; ++step) {
-    if (iu >= 0 && iv >= 0 && iu < mask.cols && iv < mask.rows &&
-        mask.data[static_cast<std::size_t>(mask.step[0]) * iv + iu] == 0) {
+    if (iu >= 0 && iv >= 0 && iu < cols && iv < rows && off(iu, iv)) {
       return std::clamp(t, 0.0, t_max);
     }
     if (step == steps) {
@@ -944,12 +957,10 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   // is all on the silhouette skips its edges, then an edge whose end pixels' rectangle is all
   // on the silhouette; the rest are walked.
   struct Item {
-    std::uint64_t key;  // block, brick within the block, voxel within the brick
-    Eigen::Vector3i inside;
+    double t_max;
+    std::uint32_t edge;
     std::int8_t axis;
     std::int8_t sign;
-    std::uint32_t edge;
-    double t_max;
   };
   const Eigen::Vector3i block_dims = (brick_dims_ + Eigen::Vector3i::Constant(3)) / 4;
   auto block_of = [&](const Eigen::Vector3i& voxel) {
@@ -957,50 +968,32 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     return static_cast<std::uint32_t>(
         (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x());
   };
-  // Grouped by block (a counting sort, the items made in place), then sorted within each
-  // block (a few hundred edges) by key.
+  // A voxel's place in its block: brick within the block (bits 6-11), voxel within the brick.
+  auto local_key = [](const Eigen::Vector3i& voxel) {
+    const Eigen::Vector3i brick = voxel / kBrick;
+    const Eigen::Vector3i local = brick - 4 * (brick / 4);
+    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
+    return static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
+           static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
+  };
+  // The edges as (local key << 32 | edge), grouped by block (a counting sort), then sorted
+  // within each block (a few hundred edges).
   std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
   for (const GridEdge& edge : edges) ++start[block_of(edge.inside.cwiseMax(0)) + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<Item> items(n);
+  const auto order = std::make_unique_for_overwrite<std::uint64_t[]>(n);
   {
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
     for (std::size_t e = 0; e < n; ++e) {
-      const GridEdge& edge = edges[e];
-      const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
-      const std::uint32_t block_index = block_of(voxel);
-      Item& item = items[fill[block_index]++];
-      item.inside = edge.inside;
-      const Eigen::Vector3i step = edge.outside - edge.inside;
-      item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
-      item.sign = static_cast<std::int8_t>(step[item.axis]);
-      item.edge = static_cast<std::uint32_t>(e);
-      const bool leaves =
-          ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
-      item.t_max = leaves ? 0.5 : 1.0;
-      if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
-        const double z = grid_.Centre(0, 0, edge.inside.z()).z();
-        const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
-        if (to_plane >= 0.0 && to_plane < item.t_max) {
-          item.t_max = to_plane;
-        }
-      }
-      const Eigen::Vector3i brick = voxel / kBrick;
-      const Eigen::Vector3i local = brick - 4 * (brick / 4);
-      const Eigen::Vector3i in_brick = voxel - kBrick * brick;
-      item.key = static_cast<std::uint64_t>(block_index) << 12 |
-                 static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
-                 static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
+      const Eigen::Vector3i voxel = edges[e].inside.cwiseMax(0);
+      order[fill[block_of(voxel)]++] = local_key(voxel) << 32 | e;
     }
   }
   for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-    std::sort(items.begin() + static_cast<std::ptrdiff_t>(start[b]),
-              items.begin() + static_cast<std::ptrdiff_t>(start[b + 1]),
-              [](const Item& x, const Item& y) { return x.key < y.key; });
+    std::sort(&order[start[b]], &order[start[b + 1]]);
   }
 
   struct Sample {  // an inside sample and its edges, items[first, first + count)
-    std::int16_t i, j, k;
     std::uint8_t count;
     std::uint8_t axes;  // bit a: an edge along axis a
     std::uint32_t first;
@@ -1018,6 +1011,7 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       z.push_back(c.z());
     }
   };
+  std::vector<Item> items;  // in the order of `order`
   std::vector<Sample> samples;
   Points sample_centre;
   std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
@@ -1026,6 +1020,7 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   // At most one sample, brick and block per edge: room for them, so that the arrays are not
   // moved as they grow (only the pages written are given memory).
   const std::size_t brick_bound = std::min(n, static_cast<std::size_t>(brick_dims_.prod()));
+  items.reserve(n);
   samples.reserve(n);
   brick_start.reserve(brick_bound + 1);
   blocks.reserve(std::min(n, static_cast<std::size_t>(block_dims.prod())));
@@ -1035,16 +1030,19 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     points->y.reserve(size);
     points->z.reserve(size);
   }
-  for (std::size_t i = 0; i < n;) {
-    std::size_t j = i;
-    std::uint8_t axes = 0;
-    for (; j < n && items[j].key == items[i].key; ++j) axes |= 1 << items[j].axis;
-    const Eigen::Vector3i voxel = items[i].inside.cwiseMax(0);
-    if (blocks.empty() || (items[samples.back().first].key >> 12) != (items[i].key >> 12)) {
-      Block& block = blocks.emplace_back();
-      block.begin = brick_start.size();
+  for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+    const std::size_t end = start[b + 1];
+    if (start[b] == end) continue;
+    Block& block = blocks.emplace_back();
+    block.begin = brick_start.size();
+    {
       // The block's voxel centres grown by one voxel.
-      const Eigen::Vector3i lo = voxel / (4 * kBrick) * (4 * kBrick) - Eigen::Vector3i::Ones();
+      const auto index = static_cast<int>(b);
+      const Eigen::Vector3i lo =
+          4 * kBrick *
+              Eigen::Vector3i(index % block_dims.x(), index / block_dims.x() % block_dims.y(),
+                              index / (block_dims.x() * block_dims.y())) -
+          Eigen::Vector3i::Ones();
       const Eigen::Vector3i hi = lo + Eigen::Vector3i::Constant(4 * kBrick + 1);
       const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
       const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
@@ -1053,21 +1051,48 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
             Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
       }
     }
-    if (samples.empty() || (items[samples.back().first].key >> 6) != (items[i].key >> 6)) {
-      brick_start.push_back(samples.size());
-      // The middle of the brick's 4 x 4 x 4 voxel centres.
-      const Eigen::Vector3i lo = voxel / kBrick * kBrick;
-      brick_centre.Add(
-          0.5 * (grid_.Centre(lo.x(), lo.y(), lo.z()) +
-                 grid_.Centre(lo.x() + kBrick - 1, lo.y() + kBrick - 1, lo.z() + kBrick - 1)));
-      blocks.back().end = brick_start.size();
+    std::uint64_t brick_key = ~std::uint64_t{0};
+    for (std::size_t i = start[b]; i < end;) {
+      const std::uint64_t key = order[i] >> 32;
+      // The sample's edges become items.
+      std::size_t j = i;
+      std::uint8_t axes = 0;
+      for (; j < end && (order[j] >> 32) == key; ++j) {
+        const auto e = static_cast<std::uint32_t>(order[j]);
+        const GridEdge& edge = edges[e];
+        Item& item = items.emplace_back();
+        const Eigen::Vector3i step = edge.outside - edge.inside;
+        item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
+        item.sign = static_cast<std::int8_t>(step[item.axis]);
+        item.edge = e;
+        const bool leaves =
+            ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
+        item.t_max = leaves ? 0.5 : 1.0;
+        if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
+          const double z = grid_.Centre(0, 0, edge.inside.z()).z();
+          const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
+          if (to_plane >= 0.0 && to_plane < item.t_max) {
+            item.t_max = to_plane;
+          }
+        }
+        axes |= 1 << item.axis;
+      }
+      const Eigen::Vector3i voxel = edges[static_cast<std::uint32_t>(order[i])].inside.cwiseMax(0);
+      if ((key >> 6) != brick_key) {
+        brick_key = key >> 6;
+        brick_start.push_back(samples.size());
+        // The middle of the brick's 4 x 4 x 4 voxel centres.
+        const Eigen::Vector3i lo = voxel / kBrick * kBrick;
+        brick_centre.Add(
+            0.5 * (grid_.Centre(lo.x(), lo.y(), lo.z()) +
+                   grid_.Centre(lo.x() + kBrick - 1, lo.y() + kBrick - 1, lo.z() + kBrick - 1)));
+        block.end = brick_start.size();
+      }
+      samples.push_back(
+          Sample{static_cast<std::uint8_t>(j - i), axes, static_cast<std::uint32_t>(i)});
+      sample_centre.Add(grid_.Centre(voxel.x(), voxel.y(), voxel.z()));
+      i = j;
     }
-    samples.push_back(Sample{static_cast<std::int16_t>(voxel.x()),
-                             static_cast<std::int16_t>(voxel.y()),
-                             static_cast<std::int16_t>(voxel.z()), static_cast<std::uint8_t>(j - i),
-                             axes, static_cast<std::uint32_t>(i)});
-    sample_centre.Add(grid_.Centre(voxel.x(), voxel.y(), voxel.z()));
-    i = j;
   }
   brick_start.push_back(samples.size());
   std::size_t largest_block = 0;  // in samples
