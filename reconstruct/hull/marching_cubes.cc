@@ -351,12 +351,13 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
            std::int64_t{dims.x()} * dims.z());
   cut_edges.reserve(static_cast<std::size_t>(box_area));
   mesh.faces.reserve(static_cast<std::size_t>(2 * box_area));
-  auto make_vertex = [&](const Eigen::Vector3i& p0, int axis) {
-    Eigen::Vector3i p1 = p0;
-    ++p1[axis];
-    const bool first_inside = padded.Get(p0.x(), p0.y(), p0.z());
-    cut_edges.push_back(GridEdge{(first_inside ? p0 : p1) - Eigen::Vector3i::Ones(),
-                                 (first_inside ? p1 : p0) - Eigen::Vector3i::Ones()});
+  // A new vertex on the edge from padded sample (x, y, z) one step along `axis`.
+  auto make_vertex = [&](int x, int y, int z, int axis) {
+    const bool first_inside = padded.Get(x, y, z);
+    const Eigen::Vector3i p0(x - 1, y - 1, z - 1);
+    const Eigen::Vector3i p1(x - (axis == 0 ? 0 : 1), y - (axis == 1 ? 0 : 1),
+                             z - (axis == 2 ? 0 : 1));
+    cut_edges.push_back(GridEdge{first_inside ? p0 : p1, first_inside ? p1 : p0});
     return static_cast<int>(cut_edges.size() - 1);
   };
 
@@ -402,35 +403,39 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
           const auto& tris = table.triangles[config];
           int local[12];
           std::fill(std::begin(local), std::end(local), -1);
-          for (int t = 0; tris[t] != CaseTable::kEnd; t += 3) {
-            Eigen::Vector3i face;
-            for (int v = 0; v < 3; ++v) {
-              const int e = static_cast<int>(tris[t + v]);
-              if (local[e] < 0) {
-                const CubeEdge& edge = kEdges[e];
-                const int c = edge.lower_corner;
-                const Eigen::Vector3i p0(px + (c & 1), py + ((c >> 1) & 1), pz + ((c >> 2) & 1));
-                const std::int64_t cell = std::int64_t{p0.y()} * n.x() + p0.x();
-                int* slot = nullptr;
-                std::vector<std::int64_t>* set = nullptr;
-                if (edge.axis == 2) {
-                  slot = &z_edges[cell];
-                  set = &z_set;
-                } else {
-                  const bool hi = (c >> 2) & 1;
-                  const int parity = (pz + (hi ? 1 : 0)) & 1;
-                  slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
-                  set = edge.axis == 0 ? &x_set[parity] : &y_set[parity];
-                }
-                if (*slot < 0) {
-                  *slot = make_vertex(p0, edge.axis);
-                  set->push_back(cell);
-                }
-                local[e] = *slot;
-              }
-              face[v] = local[e];
+          // The vertex of the cell's edge e (made on first use).
+          auto vertex = [&](int e) {
+            if (local[e] >= 0) return local[e];
+            const CubeEdge& edge = kEdges[e];
+            const int c = edge.lower_corner;
+            const int x = px + (c & 1);
+            const int y = py + ((c >> 1) & 1);
+            const int z = pz + ((c >> 2) & 1);
+            const std::int64_t cell = std::int64_t{y} * n.x() + x;
+            int* slot = nullptr;
+            std::vector<std::int64_t>* set = nullptr;
+            if (edge.axis == 2) {
+              slot = &z_edges[cell];
+              set = &z_set;
+            } else {
+              const bool hi = (c >> 2) & 1;
+              const int parity = (pz + (hi ? 1 : 0)) & 1;
+              slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
+              set = edge.axis == 0 ? &x_set[parity] : &y_set[parity];
             }
-            mesh.faces.push_back(face);
+            if (*slot < 0) {
+              *slot = make_vertex(x, y, z, edge.axis);
+              set->push_back(cell);
+            }
+            local[e] = *slot;
+            return *slot;
+          };
+          for (int t = 0; tris[t] != CaseTable::kEnd; t += 3) {
+            // In order: the vertices are numbered as they are made.
+            const int a = vertex(tris[t]);
+            const int b = vertex(tris[t + 1]);
+            const int c = vertex(tris[t + 2]);
+            mesh.faces.emplace_back(a, b, c);
           }
         }
       }

@@ -1016,6 +1016,8 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   Points sample_centre;
   std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
   Points brick_centre;
+  // Per brick: the box of its samples' segments (grid coordinates, voxels).
+  std::vector<Eigen::Vector3d> brick_lo, brick_hi;
   std::vector<Block> blocks;
   // At most one sample, brick and block per edge: room for them, so that the arrays are not
   // moved as they grow (only the pages written are given memory).
@@ -1023,6 +1025,8 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   items.reserve(n);
   samples.reserve(n);
   brick_start.reserve(brick_bound + 1);
+  brick_lo.reserve(brick_bound);
+  brick_hi.reserve(brick_bound);
   blocks.reserve(std::min(n, static_cast<std::size_t>(block_dims.prod())));
   for (auto [points, size] :
        {std::pair{&sample_centre, n}, std::pair{&brick_centre, brick_bound}}) {
@@ -1081,12 +1085,16 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       if ((key >> 6) != brick_key) {
         brick_key = key >> 6;
         brick_start.push_back(samples.size());
-        // The middle of the brick's 4 x 4 x 4 voxel centres.
-        const Eigen::Vector3i lo = voxel / kBrick * kBrick;
-        brick_centre.Add(
-            0.5 * (grid_.Centre(lo.x(), lo.y(), lo.z()) +
-                   grid_.Centre(lo.x() + kBrick - 1, lo.y() + kBrick - 1, lo.z() + kBrick - 1)));
+        brick_lo.push_back(voxel.cast<double>());
+        brick_hi.push_back(voxel.cast<double>());
         block.end = brick_start.size();
+      }
+      // The segments' ends.
+      for (std::size_t k = i; k < j; ++k) {
+        Eigen::Vector3d tip = voxel.cast<double>();
+        tip[items[k].axis] += items[k].sign * items[k].t_max;
+        brick_lo.back() = brick_lo.back().cwiseMin(tip);
+        brick_hi.back() = brick_hi.back().cwiseMax(tip);
       }
       samples.push_back(
           Sample{static_cast<std::uint8_t>(j - i), axes, static_cast<std::uint32_t>(i)});
@@ -1095,6 +1103,12 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     }
   }
   brick_start.push_back(samples.size());
+  // Each brick's middle (mm) and half extents (voxels).
+  std::vector<Eigen::Vector3d> brick_half(brick_lo.size());
+  for (std::size_t b = 0; b < brick_lo.size(); ++b) {
+    brick_centre.Add(grid_.Centre(0, 0, 0) + grid_.voxel_mm * 0.5 * (brick_lo[b] + brick_hi[b]));
+    brick_half[b] = 0.5 * (brick_hi[b] - brick_lo[b]);
+  }
   std::size_t largest_block = 0;  // in samples
   std::size_t most_bricks = 0;
   std::size_t most_items = 0;
@@ -1150,7 +1164,8 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     }
     // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
     // (shifted by half a pixel) are all in the image and on the silhouette.
-    auto all_on_around = [&](double w, double u, double pv, double reach_u, double reach_v) {
+    auto all_on_around = [&](double w, double u, double pv, double reach_u, double reach_v)
+        __attribute__((always_inline)) {
       const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
       const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
       return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
@@ -1159,14 +1174,13 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     };
     for (const Block& block : blocks) {
       // How far the segments can move in the image (px): per set of axes (bit a: axis a) for a
-      // sample's segments of one voxel, and for any point of a brick's box from the brick's
-      // middle (2.5 voxels along each axis, plus a margin for the rounding of the projections,
-      // ~1e-12 px).
+      // sample's segments of one voxel, and per voxel along each axis for a brick's (below).
+      // Infinite (NaN when multiplied by 0) where part of the block is behind the camera: then
+      // nothing is left out.
       double reach_u[8], reach_v[8];
       std::fill(std::begin(reach_u), std::end(reach_u), std::numeric_limits<double>::infinity());
       std::fill(std::begin(reach_v), std::end(reach_v), std::numeric_limits<double>::infinity());
-      double brick_reach_u = std::numeric_limits<double>::infinity();
-      double brick_reach_v = brick_reach_u;
+      StepBound bound{};
       if (cull_views) {
         double projected[8][3];
         for (int c = 0; c < 8; ++c) {
@@ -1176,7 +1190,7 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
           projected[c][2] = h.w;
         }
         if (packed.AllOnOrUnseen(projected, mask.cols, mask.rows)) continue;
-        const StepBound bound = MaxStepPx(p, projected, grid_.voxel_mm);
+        bound = MaxStepPx(p, projected, grid_.voxel_mm);
         for (int axes = 1; axes < 8; ++axes) {
           double u = 0.0, w = 0.0;
           for (int axis = 0; axis < 3; ++axis) {
@@ -1188,11 +1202,6 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
           reach_u[axes] = u;
           reach_v[axes] = w;
         }
-        // From the middle to a corner of the brick's box: three legs of 2.5 voxels along the
-        // axes, each inside the block's box.
-        constexpr double kHalfBox = 0.5 * (kBrick + 1);
-        brick_reach_u = kHalfBox * (bound.u_px[0] + bound.u_px[1] + bound.u_px[2]) + 1e-6;
-        brick_reach_v = kHalfBox * (bound.v_px[0] + bound.v_px[1] + bound.v_px[2]) + 1e-6;
       }
       // Bricks: those whose box is all on the silhouette are left out.
       const std::size_t bricks = block.end - block.begin;
@@ -1201,7 +1210,16 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
                     brick_w.data(), brick_u.data(), brick_v.data());
       std::size_t count = 0;
       for (std::size_t b = 0; b < bricks; ++b) {
-        if (all_on_around(brick_w[b], brick_u[b], brick_v[b], brick_reach_u, brick_reach_v)) {
+        // From the middle to a corner of the box of the brick's segments: three legs along the
+        // axes, each inside the block's box, plus a margin for the rounding of the projections
+        // (~1e-12 px).
+        const Eigen::Vector3d& half = brick_half[block.begin + b];
+        const double brick_reach_u =
+            half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
+        const double brick_reach_v =
+            half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
+        if (cull_views &&
+            all_on_around(brick_w[b], brick_u[b], brick_v[b], brick_reach_u, brick_reach_v)) {
           continue;
         }
         for (std::size_t s = brick_start[block.begin + b]; s < brick_start[block.begin + b + 1];

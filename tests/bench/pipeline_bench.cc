@@ -136,6 +136,8 @@ void BM_Stage(benchmark::State& state) {
     } else if (stage == 1) {
       Mesh mesh = plain;
       benchmark::DoNotOptimize(TextureMesh(&mesh, f.views, f.images));
+    } else if (stage == 12) {
+      benchmark::DoNotOptimize(hull.ExtractSurface(surface));
     } else {
       const std::string format = kFormats[(stage - 2) % 5];
       benchmark::DoNotOptimize(WriteModel(stage < 7 ? plain : textured, dir, "m", {format}));
@@ -143,10 +145,11 @@ void BM_Stage(benchmark::State& state) {
   }
   fs::remove_all(dir);
 }
-BENCHMARK(BM_Stage)->Name("Stage")->ArgName("stage")->DenseRange(0, 11)->Unit(
+BENCHMARK(BM_Stage)->Name("Stage")->ArgName("stage")->DenseRange(0, 12)->Unit(
     benchmark::kMillisecond);
 // Stages: 0 vertex colours, 1 colours + atlas, 2-6 write ply/obj/stl/glb/wrl without texture,
-// 7-11 the same with the texture (obj writes the PNG, glb embeds it).
+// 7-11 the same with the texture (obj writes the PNG, glb embeds it), 12 the surface (marching
+// cubes and the placement on the edges, the base clipped at the plate).
 
 }  // namespace
 }  // namespace revolve::reconstruct
