@@ -976,8 +976,10 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     return static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
            static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
   };
-  // The edges as (local key << 32 | edge), grouped by block (a counting sort), then sorted
-  // within each block (a few hundred edges).
+  // The edges as (what the placement needs of the edge << 44 | local key << 32 | edge index),
+  // grouped by block (a counting sort), then sorted by local key within each block (a few
+  // hundred edges). What it needs: the axis (bits 0-1), whether the step is positive (bit 2)
+  // and whether the edge leaves the grid (bit 3).
   std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
   for (const GridEdge& edge : edges) ++start[block_of(edge.inside.cwiseMax(0)) + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
@@ -985,12 +987,38 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   {
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
     for (std::size_t e = 0; e < n; ++e) {
-      const Eigen::Vector3i voxel = edges[e].inside.cwiseMax(0);
-      order[fill[block_of(voxel)]++] = local_key(voxel) << 32 | e;
+      const GridEdge& edge = edges[e];
+      const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
+      const Eigen::Vector3i step = edge.outside - edge.inside;
+      const int axis = step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2);
+      const bool leaves =
+          ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
+      const std::uint64_t need = static_cast<std::uint64_t>(axis) |
+                                 static_cast<std::uint64_t>(step[axis] > 0) << 2 |
+                                 static_cast<std::uint64_t>(leaves) << 3;
+      order[fill[block_of(voxel)]++] = (need << 12 | local_key(voxel)) << 32 | e;
     }
   }
-  for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-    std::sort(&order[start[b]], &order[start[b + 1]]);
+  {
+    // Within a block: a radix sort on the local key, 6 bits at a time (stable, so the edges of
+    // a sample stay in increasing order, as sorting the whole values would leave them).
+    std::size_t most = 0;
+    for (std::size_t b = 0; b + 1 < start.size(); ++b)
+      most = std::max(most, start[b + 1] - start[b]);
+    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
+    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+      const std::size_t count = start[b + 1] - start[b];
+      if (count < 2) continue;
+      std::uint64_t* from = &order[start[b]];
+      std::uint64_t* to = scratch.get();
+      for (const int shift : {32, 38}) {
+        std::array<std::uint32_t, 65> at{};
+        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
+        std::partial_sum(at.begin(), at.end(), at.begin());
+        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
+        std::swap(from, to);
+      }
+    }
   }
 
   struct Sample {  // an inside sample and its edges, items[first, first + count)
@@ -1039,14 +1067,15 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     if (start[b] == end) continue;
     Block& block = blocks.emplace_back();
     block.begin = brick_start.size();
+    // The block's first voxel.
+    const auto index = static_cast<int>(b);
+    const Eigen::Vector3i block_voxel =
+        4 * kBrick *
+        Eigen::Vector3i(index % block_dims.x(), index / block_dims.x() % block_dims.y(),
+                        index / (block_dims.x() * block_dims.y()));
     {
       // The block's voxel centres grown by one voxel.
-      const auto index = static_cast<int>(b);
-      const Eigen::Vector3i lo =
-          4 * kBrick *
-              Eigen::Vector3i(index % block_dims.x(), index / block_dims.x() % block_dims.y(),
-                              index / (block_dims.x() * block_dims.y())) -
-          Eigen::Vector3i::Ones();
+      const Eigen::Vector3i lo = block_voxel - Eigen::Vector3i::Ones();
       const Eigen::Vector3i hi = lo + Eigen::Vector3i::Constant(4 * kBrick + 1);
       const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
       const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
@@ -1057,23 +1086,23 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     }
     std::uint64_t brick_key = ~std::uint64_t{0};
     for (std::size_t i = start[b]; i < end;) {
-      const std::uint64_t key = order[i] >> 32;
+      const std::uint64_t key = order[i] >> 32 & 0xFFF;
+      const auto local = static_cast<int>(key);
+      const Eigen::Vector3i voxel =
+          block_voxel + kBrick * Eigen::Vector3i(local >> 6 & 3, local >> 8 & 3, local >> 10 & 3) +
+          Eigen::Vector3i(local & 3, local >> 2 & 3, local >> 4 & 3);
       // The sample's edges become items.
       std::size_t j = i;
       std::uint8_t axes = 0;
-      for (; j < end && (order[j] >> 32) == key; ++j) {
-        const auto e = static_cast<std::uint32_t>(order[j]);
-        const GridEdge& edge = edges[e];
+      for (; j < end && (order[j] >> 32 & 0xFFF) == key; ++j) {
+        const std::uint64_t need = order[j] >> 44;
         Item& item = items.emplace_back();
-        const Eigen::Vector3i step = edge.outside - edge.inside;
-        item.axis = static_cast<std::int8_t>(step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2));
-        item.sign = static_cast<std::int8_t>(step[item.axis]);
-        item.edge = e;
-        const bool leaves =
-            ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
-        item.t_max = leaves ? 0.5 : 1.0;
+        item.axis = static_cast<std::int8_t>(need & 3);
+        item.sign = static_cast<std::int8_t>(need & 4 ? 1 : -1);
+        item.edge = static_cast<std::uint32_t>(order[j]);
+        item.t_max = need & 8 ? 0.5 : 1.0;
         if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
-          const double z = grid_.Centre(0, 0, edge.inside.z()).z();
+          const double z = grid_.Centre(0, 0, voxel.z()).z();
           const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
           if (to_plane >= 0.0 && to_plane < item.t_max) {
             item.t_max = to_plane;
@@ -1081,7 +1110,6 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         }
         axes |= 1 << item.axis;
       }
-      const Eigen::Vector3i voxel = edges[static_cast<std::uint32_t>(order[i])].inside.cwiseMax(0);
       if ((key >> 6) != brick_key) {
         brick_key = key >> 6;
         brick_start.push_back(samples.size());
