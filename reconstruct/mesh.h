@@ -18,6 +18,11 @@ struct Mesh {
   std::vector<Eigen::Vector3i> faces;
   // Empty, or one per vertex.
   std::vector<Color> colors;
+  // Empty, or one unit normal per vertex: the area-weighted mean of its faces' normals, +z where
+  // that is zero (as the writers compute them when they are absent). TextureMesh fills them from
+  // the normals it chooses views with; whoever moves the vertices or changes the faces clears
+  // them.
+  std::vector<Eigen::Vector3f> normals;
 
   // Texture: `texture` is the atlas image (CV_8UC3, BGR as OpenCV keeps images; copies of a Mesh
   // share its pixels). `uvs` are points on it: u from the left edge, v from the TOP edge, both in
@@ -30,6 +35,7 @@ struct Mesh {
   cv::Mat texture;
 
   bool HasColors() const { return !colors.empty() && colors.size() == vertices.size(); }
+  bool HasNormals() const { return !normals.empty() && normals.size() == vertices.size(); }
   bool HasTexture() const {
     return !texture.empty() && !uvs.empty() && !faces.empty() && uv_faces.size() == faces.size();
   }

@@ -267,6 +267,7 @@ int KeepLargestComponent(Mesh* mesh) {
   std::vector<int> new_index(vertex_count, -1);
   Mesh kept;
   const bool colors = mesh->HasColors();
+  const bool normals = mesh->HasNormals();
   const bool uv_faces = mesh->uv_faces.size() == mesh->faces.size();
   kept.uvs = mesh->uvs;
   kept.texture = mesh->texture;
@@ -286,6 +287,9 @@ int KeepLargestComponent(Mesh* mesh) {
         kept.vertices.push_back(mesh->vertices[f[c]]);
         if (colors) {
           kept.colors.push_back(mesh->colors[f[c]]);
+        }
+        if (normals) {
+          kept.normals.push_back(mesh->normals[f[c]]);
         }
       }
       g[c] = idx;

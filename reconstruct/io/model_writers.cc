@@ -198,7 +198,11 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
   const bool textured = mesh.HasTexture();
   const bool colors = !textured && mesh.HasColors();
-  const std::vector<Eigen::Vector3f> vertex_normals = VertexNormals(mesh);
+  // The mesh's own normals (TextureMesh's) where it has them: the same values.
+  std::vector<Eigen::Vector3f> computed_normals;
+  if (!mesh.HasNormals()) computed_normals = VertexNormals(mesh);
+  const std::vector<Eigen::Vector3f>& vertex_normals =
+      mesh.HasNormals() ? mesh.normals : computed_normals;
 
   // The vertices as glTF sees them: split by uv where textured, else the mesh's own (written
   // straight from the mesh's arrays).

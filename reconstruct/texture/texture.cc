@@ -469,8 +469,13 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     lo = lo.cwiseMin(a);
     hi = hi.cwiseMax(a);
   }
-  for (Eigen::Vector3f& n : vertex_normal) {
+  // The mesh keeps them too (Mesh::normals: +z where they vanish), for the writers.
+  mesh->normals.resize(nv);
+  for (int i = 0; i < nv; ++i) {
+    Eigen::Vector3f& n = vertex_normal[i];
     const float length = n.norm();
+    mesh->normals[i] = length > 0.0f && std::isfinite(length) ? Eigen::Vector3f(n / length)
+                                                              : Eigen::Vector3f::UnitZ();
     n = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
   }
   // Every vertex's box (lo and hi above take the faces' first corners only).

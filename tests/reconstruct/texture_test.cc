@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <regex>
 
 #include <gtest/gtest.h>
@@ -15,6 +17,7 @@
 
 #include "capture/synthetic/render.h"
 #include "capture/synthetic/scene.h"
+#include "reconstruct/io/atomic_file.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/reconstructor.h"
@@ -199,6 +202,32 @@ TEST(Texture, VertexColoursOnlyWhenTextureIsOff) {
   EXPECT_GT(c[0], 150);
   EXPECT_GT(c[2], 150);
   EXPECT_LT(c[1], c[0] - 60);
+}
+
+// TextureMesh leaves in the mesh the vertex normals the writers would compute, so the glTF
+// writer takes them as they are: the same file either way.
+TEST(Texture, LeavesTheNormalsTheWritersWouldCompute) {
+  Mesh mesh = Reconstruct(SphereFrames(), 64, false);
+  ASSERT_TRUE(mesh.HasNormals());
+  const std::vector<Eigen::Vector3f> computed = internal::VertexNormals(mesh);
+  ASSERT_EQ(computed.size(), mesh.normals.size());
+  for (std::size_t v = 0; v < computed.size(); ++v) {
+    ASSERT_EQ(mesh.normals[v], computed[v]) << "vertex " << v;
+  }
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("revolve_texture_normals_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(WriteModel(mesh, dir, "kept", {"glb"}).has_value());
+  mesh.normals.clear();
+  ASSERT_TRUE(WriteModel(mesh, dir, "computed", {"glb"}).has_value());
+  auto bytes = [](const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string kept = bytes(dir / "kept.glb");
+  EXPECT_GT(kept.size(), 12 * mesh.vertices.size());
+  EXPECT_EQ(kept, bytes(dir / "computed.glb"));
+  std::filesystem::remove_all(dir);
 }
 
 // The files of a textured reconstruction, read by code no one here wrote.
