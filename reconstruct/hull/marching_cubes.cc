@@ -357,11 +357,14 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
   mesh.faces.reserve(static_cast<std::size_t>(2 * box_area));
   // A new vertex on the edge from padded sample (x, y, z) one step along `axis`.
   auto make_vertex = [&](int x, int y, int z, int axis) {
-    const bool first_inside = padded.Get(x, y, z);
-    const Eigen::Vector3i p0(x - 1, y - 1, z - 1);
-    const Eigen::Vector3i p1(x - (axis == 0 ? 0 : 1), y - (axis == 1 ? 0 : 1),
-                             z - (axis == 2 ? 0 : 1));
-    cut_edges.push_back(GridEdge{first_inside ? p0 : p1, first_inside ? p1 : p0});
+    // The field sample one step along the axis from the edge's first (in field coordinates:
+    // padded - 1), and which of the two is inside.
+    const int ux = axis == 0 ? 1 : 0, uy = axis == 1 ? 1 : 0, uz = axis == 2 ? 1 : 0;
+    const int in = padded.Get(x, y, z) ? 0 : 1;
+    const int out = 1 - in;
+    GridEdge& edge = cut_edges.emplace_back();
+    edge.inside = Eigen::Vector3i(x - 1 + in * ux, y - 1 + in * uy, z - 1 + in * uz);
+    edge.outside = Eigen::Vector3i(x - 1 + out * ux, y - 1 + out * uy, z - 1 + out * uz);
     return static_cast<int>(cut_edges.size() - 1);
   };
 
