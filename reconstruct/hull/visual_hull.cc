@@ -12,6 +12,11 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define REVOLVE_X86_AVX2 1
+#endif
+
 #include "reconstruct/hull/marching_cubes.h"
 
 namespace revolve::reconstruct {
@@ -852,6 +857,21 @@ class PackedMask {
     return (all & want) == want;
   }
 
+  // on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) (1 or 0) for the `count` rectangles: with AVX2
+  // where the processor has it, four at a time.
+  void AllOnEach(const int* u0, const int* v0, const int* u1, const int* v1, std::size_t count,
+                 std::uint8_t* on) const {
+#if defined(REVOLVE_X86_AVX2)
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    // (With no bits, every rectangle is empty or outside: nothing to gather from.)
+    if (avx2 && roi_.width > 0 && roi_.height > 0) {
+      AllOnEachAvx2(u0, v0, u1, v1, count, on);
+      return;
+    }
+#endif
+    for (std::size_t i = 0; i < count; ++i) on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) ? 1 : 0;
+  }
+
   // Whether every point of the convex hull of 8 points (their projections P * [X; 1]) that
   // the view sees lands on the silhouette: ClassifyRect's kUnaffected.
   bool AllOnOrUnseen(const double (*projected)[3], int width, int height) const {
@@ -882,6 +902,84 @@ class PackedMask {
   }
 
  private:
+  // AllOnEach for count rectangles from `first`, four at a time, with AVX2 (a row's two words of
+  // four rectangles gathered at once); the rectangles of more than 4 rows or 57 columns, which
+  // AllOn does not do branch-free either, are left to it.
+#if defined(REVOLVE_X86_AVX2)
+  [[gnu::target("avx2")]] void AllOnEachAvx2(const int* u0, const int* v0, const int* u1,
+                                             const int* v1, std::size_t count,
+                                             std::uint8_t* on) const {
+    const __m128i roi_x = _mm_set1_epi32(roi_.x), roi_y = _mm_set1_epi32(roi_.y);
+    const __m128i last_x = _mm_set1_epi32(roi_.width - 1);
+    const __m128i last_y = _mm_set1_epi32(roi_.height - 1);
+    const __m128i zero = _mm_setzero_si128(), one = _mm_set1_epi32(1);
+    const __m128i words = _mm_set1_epi32(words_);
+    const __m128i max_cols = _mm_set1_epi32(57), max_rows = _mm_set1_epi32(4);
+    const auto* bits = reinterpret_cast<const long long*>(bits_);
+    std::size_t i = 0;
+    for (; i + 4 <= count; i += 4) {
+      const __m128i x0 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(u0 + i)), roi_x);
+      const __m128i x1 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(u1 + i)), roi_x);
+      const __m128i y0 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(v0 + i)), roi_y);
+      const __m128i y1 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(v1 + i)), roi_y);
+      // Lanes: empty (true), outside the rectangle of bits (false), too large (AllOn).
+      const __m128i empty = _mm_or_si128(_mm_cmpgt_epi32(x0, x1), _mm_cmpgt_epi32(y0, y1));
+      const __m128i outside =
+          _mm_or_si128(_mm_or_si128(_mm_cmplt_epi32(x0, zero), _mm_cmplt_epi32(y0, zero)),
+                       _mm_or_si128(_mm_cmpgt_epi32(x1, last_x), _mm_cmpgt_epi32(y1, last_y)));
+      const __m128i cols = _mm_add_epi32(_mm_sub_epi32(x1, x0), one);
+      const __m128i rows = _mm_add_epi32(_mm_sub_epi32(y1, y0), one);
+      const __m128i large =
+          _mm_or_si128(_mm_cmpgt_epi32(cols, max_cols), _mm_cmpgt_epi32(rows, max_rows));
+      // The rows of every lane, clamped into the bits (the results of lanes decided above
+      // are not used).
+      const __m128i x = _mm_min_epi32(_mm_max_epi32(x0, zero), last_x);
+      const __m128i first_row = _mm_min_epi32(_mm_max_epi32(y0, zero), last_y);
+      const __m128i last_row = _mm_max_epi32(_mm_min_epi32(y1, last_y), first_row);
+      const __m128i word = _mm_srai_epi32(x, 6);
+      const __m256i shift = _mm256_cvtepi32_epi64(_mm_and_si128(x, _mm_set1_epi32(63)));
+      const __m256i back = _mm256_sub_epi64(_mm256_set1_epi64x(63), shift);
+      __m256i all = _mm256_set1_epi64x(-1);
+      for (int r = 0; r < 4; ++r) {
+        const __m128i row = _mm_min_epi32(_mm_add_epi32(first_row, _mm_set1_epi32(r)), last_row);
+        const __m128i at = _mm_add_epi32(_mm_mullo_epi32(row, words), word);
+        const __m256i low = _mm256_i32gather_epi64(bits, at, 8);
+        const __m256i high = _mm256_i32gather_epi64(bits + 1, at, 8);
+        // (high << 1) << (63 - shift): the next word's low bits, 0 when shift is 0.
+        const __m256i value = _mm256_or_si256(_mm256_srlv_epi64(low, shift),
+                                              _mm256_sllv_epi64(_mm256_slli_epi64(high, 1), back));
+        all = _mm256_and_si256(all, value);
+      }
+      const __m256i width =
+          _mm256_cvtepi32_epi64(_mm_min_epi32(_mm_max_epi32(cols, one), max_cols));
+      const __m256i want =
+          _mm256_sub_epi64(_mm256_sllv_epi64(_mm256_set1_epi64x(1), width), _mm256_set1_epi64x(1));
+      const int full = _mm256_movemask_pd(
+          _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(all, want), want)));
+      const int empty_mask = _mm_movemask_ps(_mm_castsi128_ps(empty));
+      const int outside_mask = _mm_movemask_ps(_mm_castsi128_ps(outside));
+      const int large_mask = _mm_movemask_ps(_mm_castsi128_ps(large));
+      for (int lane = 0; lane < 4; ++lane) {
+        const int bit = 1 << lane;
+        if (empty_mask & bit) {
+          on[i + lane] = 1;
+        } else if (outside_mask & bit) {
+          on[i + lane] = 0;
+        } else if (large_mask & bit) {
+          on[i + lane] = AllOn(u0[i + lane], v0[i + lane], u1[i + lane], v1[i + lane]) ? 1 : 0;
+        } else {
+          on[i + lane] = (full & bit) ? 1 : 0;
+        }
+      }
+    }
+    for (; i < count; ++i) on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) ? 1 : 0;
+  }
+#endif
+
   bool AllOnWide(int u0, int v0, int u1, int v1) const {
     for (int v = v0; v <= v1; ++v) {
       for (int u = u0; u <= u1; ++u) {
@@ -1160,6 +1258,11 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
   std::vector<double> sample_hx(largest_block), sample_hy(largest_block), sample_w(largest_block);
   std::vector<double> sample_u(largest_block), sample_v(largest_block);
   std::vector<std::uint32_t> walk(largest_block);
+  // Rectangles of pixels to test together (AllOnEach): the samples', then the items'.
+  const std::size_t most_rects = std::max(largest_block, most_items);
+  std::vector<int> rect_u0(most_rects), rect_v0(most_rects), rect_u1(most_rects),
+      rect_v1(most_rects);
+  std::vector<std::uint8_t> rect_on(most_rects);
   // The items of the samples to walk: item, sample (gathered), the part of the segment that
   // can matter, and its end (P * [X; 1]; then the nearest pixel).
   std::vector<std::uint32_t> walk_item(most_items), walk_sample(most_items);
@@ -1263,16 +1366,29 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
                     sample_v.data());
       // Samples: those whose segments all stay on the silhouette are left out (no branch on
       // the outcome: it is hard to predict).
-      std::size_t walks = 0;
+      // The rectangles are made first (all_on_around's; one outside the silhouette's where
+      // that is false before any pixel is read), then tested together.
       for (std::size_t g = 0; g < count; ++g) {
         const std::uint32_t s = gathered_sample[g];
         const std::uint8_t axes = samples[s].axes;
         // The segments are as long as the part of them that can still hold the crossing.
         const double t = sample_t[s];
-        const bool skip = all_on_around(sample_w[g], sample_u[g], sample_v[g],
-                                        reach_u[axes] * t + 1e-6, reach_v[axes] * t + 1e-6);
+        const double around_u = reach_u[axes] * t + 1e-6, around_v = reach_v[axes] * t + 1e-6;
+        const double u_lo = sample_u[g] + 0.5 - around_u, u_hi = sample_u[g] + 0.5 + around_u;
+        const double v_lo = sample_v[g] + 0.5 - around_v, v_hi = sample_v[g] + 0.5 + around_v;
+        const bool in_image =
+            sample_w[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows;
+        rect_u0[g] = static_cast<int>(in_image ? u_lo : -1.0);
+        rect_v0[g] = static_cast<int>(in_image ? v_lo : -1.0);
+        rect_u1[g] = static_cast<int>(in_image ? u_hi : -1.0);
+        rect_v1[g] = static_cast<int>(in_image ? v_hi : -1.0);
+      }
+      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), count,
+                       rect_on.data());
+      std::size_t walks = 0;
+      for (std::size_t g = 0; g < count; ++g) {
         walk[walks] = static_cast<std::uint32_t>(g);
-        walks += skip ? 0 : 1;
+        walks += rect_on[g] != 0 ? 0 : 1;
       }
       // The items of the samples to walk, with the end of the part of their segment that can
       // matter: only the part before the nearest exit found so far (the walk of the shorter
@@ -1299,6 +1415,19 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         sample_t[gathered_sample[g]] = longest;
       }
       NearestPixels(end_x.data(), end_y.data(), end_w.data(), m, end_u.data(), end_v.data());
+      // FirstExit's first test, on the same values, for the segments in front of the camera:
+      // the rectangle of the end pixels, clamped to the image (the others' is not used).
+      for (std::size_t r = 0; r < m; ++r) {
+        const std::size_t g = walk_sample[r];
+        const int iu = NearestPixel(sample_u[g]);
+        const int iv = NearestPixel(sample_v[g]);
+        rect_u0[r] = std::max(std::min(iu, end_u[r]), 0);
+        rect_u1[r] = std::min(std::max(iu, end_u[r]), mask.cols - 1);
+        rect_v0[r] = std::max(std::min(iv, end_v[r]), 0);
+        rect_v1[r] = std::min(std::max(iv, end_v[r]), mask.rows - 1);
+      }
+      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), m,
+                       rect_on.data());
       for (std::size_t r = 0; r < m; ++r) {
         const std::size_t k = walk_item[r];
         const std::size_t g = walk_sample[r];
@@ -1309,16 +1438,10 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
         const double hw = sample_w[g];
         const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
         if (hw > 0.0 && end_w[r] > 0.0) {
-          // FirstExit's first test, on the same values: the rectangle of the end pixels.
-          const int iu = NearestPixel(sample_u[g]);
-          const int iv = NearestPixel(sample_v[g]);
-          const int u0 = std::max(std::min(iu, end_u[r]), 0);
-          const int u1 = std::min(std::max(iu, end_u[r]), mask.cols - 1);
-          const int v0 = std::max(std::min(iv, end_v[r]), 0);
-          const int v1 = std::min(std::max(iv, end_v[r]), mask.rows - 1);
-          if (packed.AllOn(u0, v0, u1, v1)) continue;
-          t_item[k] = std::min(t_item[k],
-                               WalkCells(view, hx, hy, hw, hd, t_max, iu, iv, end_u[r], end_v[r]));
+          if (rect_on[r] != 0) continue;
+          t_item[k] =
+              std::min(t_item[k], WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sample_u[g]),
+                                            NearestPixel(sample_v[g]), end_u[r], end_v[r]));
           continue;
         }
         const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
