@@ -357,8 +357,8 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
   mesh.faces.reserve(static_cast<std::size_t>(2 * box_area));
   // A new vertex on the edge from padded sample (x, y, z) one step along `axis`.
   auto make_vertex = [&](int x, int y, int z, int axis) {
-    // The field sample one step along the axis from the edge's first (in field coordinates:
-    // padded - 1), and which of the two is inside.
+    // In field coordinates (padded - 1) the edge runs from (x, y, z) - 1 one step along `axis`
+    // (u); `in` is 1 when its second end, not its first, is the inside sample.
     const int ux = axis == 0 ? 1 : 0, uy = axis == 1 ? 1 : 0, uz = axis == 2 ? 1 : 0;
     const int in = padded.Get(x, y, z) ? 0 : 1;
     const int out = 1 - in;

@@ -902,9 +902,9 @@ class PackedMask {
   }
 
  private:
-  // AllOnEach for count rectangles from `first`, four at a time, with AVX2 (a row's two words of
-  // four rectangles gathered at once); the rectangles of more than 4 rows or 57 columns, which
-  // AllOn does not do branch-free either, are left to it.
+  // AllOnEach four rectangles at a time, with AVX2 (a row's two words of the four gathered at
+  // once); the rectangles of more than 4 rows or 57 columns, which AllOn does not do branch-free
+  // either, are left to it.
 #if defined(REVOLVE_X86_AVX2)
   [[gnu::target("avx2")]] void AllOnEachAvx2(const int* u0, const int* v0, const int* u1,
                                              const int* v1, std::size_t count,
@@ -1098,11 +1098,12 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
     }
   }
   {
-    // Within a block: a radix sort on the local key, 6 bits at a time (stable, so the edges of
-    // a sample stay in increasing order, as sorting the whole values would leave them).
+    // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
+    // sample stay in the order of their indices).
     std::size_t most = 0;
-    for (std::size_t b = 0; b + 1 < start.size(); ++b)
+    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
       most = std::max(most, start[b + 1] - start[b]);
+    }
     const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
     for (std::size_t b = 0; b + 1 < start.size(); ++b) {
       const std::size_t count = start[b + 1] - start[b];
