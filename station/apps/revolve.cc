@@ -6,12 +6,12 @@
 
 #include <CLI/CLI.hpp>
 
-#include "station/apps/calibrate_commands.h"
-#include "station/apps/camera_commands.h"
 #include "station/apps/guarded_main.h"
-#include "station/apps/station_commands.h"
-#include "station/apps/turntable_commands.h"
-#include "station/scan_command.h"
+#include "station/commands/calibrate_commands.h"
+#include "station/commands/camera_commands.h"
+#include "station/commands/scan_command.h"
+#include "station/commands/station_commands.h"
+#include "station/commands/turntable_commands.h"
 
 namespace {
 

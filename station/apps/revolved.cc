@@ -10,7 +10,7 @@
 
 #include "station/apps/guarded_main.h"
 #include "station/daemon.h"
-#include "station/scan_command.h"
+#include "station/exit_codes.h"
 #include "station/station_config.h"
 
 namespace {

@@ -26,7 +26,7 @@
 #include "base/unique_fd.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 #include "station/protocol.h"
 #include "tests/e2e/daemon_harness.h"
 #include "tests/support/control_events.h"

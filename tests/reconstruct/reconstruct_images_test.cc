@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "station/reconstruct_images_command.h"
-#include "station/scan_command.h"
+#include "station/commands/reconstruct_images_command.h"
+#include "station/commands/scan_command.h"
 
 namespace revolve::station {
 namespace {

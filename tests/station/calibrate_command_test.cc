@@ -3,7 +3,7 @@
 // file, bad input (no board, a board of the wrong size, too few views) exiting non-zero with a
 // message naming the cause; the [calibration] table of the station config; and the scan geometry
 // (station/scan_geometry.h).
-#include "station/calibrate_command.h"
+#include "station/commands/calibrate_command.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -17,7 +17,7 @@
 #include "calibrate/calibration.h"
 #include "calibration_rig.h"
 #include "config/config.h"
-#include "station/scan_command.h"
+#include "station/commands/scan_command.h"
 #include "station/scan_geometry.h"
 #include "station/station_config.h"
 #include "tests/support/test_files.h"

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 
 namespace revolve::station {
 namespace {

@@ -11,7 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 
 namespace revolve::test_support {
 

@@ -1,11 +1,11 @@
-#include "station/apps/station_commands.h"
+#include "station/commands/station_commands.h"
 
 #include <unistd.h>
 
-#include "station/control_commands.h"
-#include "station/reconstruct_command.h"
-#include "station/reconstruct_images_command.h"
-#include "station/scan_command.h"
+#include "station/commands/control_commands.h"
+#include "station/commands/reconstruct_command.h"
+#include "station/commands/reconstruct_images_command.h"
+#include "station/commands/scan_command.h"
 
 namespace revolve::station {
 namespace {

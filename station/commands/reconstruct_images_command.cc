@@ -1,4 +1,4 @@
-#include "station/reconstruct_images_command.h"
+#include "station/commands/reconstruct_images_command.h"
 
 #include <algorithm>
 #include <chrono>
@@ -18,7 +18,7 @@
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/reconstructor.h"
-#include "station/scan_command.h"
+#include "station/commands/scan_command.h"
 #include "station/timing.h"
 
 namespace revolve::station {

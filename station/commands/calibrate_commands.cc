@@ -1,8 +1,8 @@
-#include "station/apps/calibrate_commands.h"
+#include "station/commands/calibrate_commands.h"
 
 #include <string>
 
-#include "station/calibrate_command.h"
+#include "station/commands/calibrate_command.h"
 
 namespace revolve::station {
 namespace {

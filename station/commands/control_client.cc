@@ -1,4 +1,4 @@
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 
 #include <poll.h>
 #include <sys/socket.h>

@@ -1,4 +1,4 @@
-#include "station/control_commands.h"
+#include "station/commands/control_commands.h"
 
 #include <ostream>
 #include <sstream>
@@ -7,8 +7,8 @@
 #include <fmt/ostream.h>
 #include <fmt/ranges.h>
 
-#include "station/control_client.h"
-#include "station/scan_command.h"
+#include "station/commands/control_client.h"
+#include "station/commands/scan_command.h"
 #include "station/scan_state.h"
 #include "station/station_config.h"
 

@@ -1,4 +1,4 @@
-#include "station/reconstruct_command.h"
+#include "station/commands/reconstruct_command.h"
 
 #include <ostream>
 
@@ -8,8 +8,8 @@
 
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
+#include "station/commands/scan_command.h"
 #include "station/saved_stops.h"
-#include "station/scan_command.h"
 #include "station/scan_folder.h"
 #include "station/scan_geometry.h"
 #include "station/station_config.h"

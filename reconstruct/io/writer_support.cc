@@ -1,158 +1,15 @@
-#include "reconstruct/io/atomic_file.h"
-
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
+#include "reconstruct/io/writer_support.h"
 
 #include <algorithm>
 #include <bit>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 
 #include <fmt/format.h>
 
 namespace revolve::reconstruct::internal {
-namespace {
-
-namespace fs = std::filesystem;
-
-Error IoError(const fs::path& path, std::string_view what, int err) {
-  return Error{ErrorCode::kIo, fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
-}
-
-fs::path DirectoryOf(const fs::path& path) {
-  fs::path dir = path.parent_path();
-  return dir.empty() ? fs::path(".") : dir;
-}
-
-}  // namespace
-
-void AtomicFile::FreeBuffer::operator()(char* p) const { std::free(p); }
-
-AtomicFile::~AtomicFile() {
-  if (!temp_.empty()) {
-    fd_.Close();
-    ::unlink(temp_.c_str());
-  }
-}
-
-Expected<void> AtomicFile::Open() {
-  std::string name =
-      (DirectoryOf(path_) / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
-  const int fd = ::mkostemp(name.data(), O_CLOEXEC);
-  if (fd < 0) {
-    return std::unexpected(IoError(path_, "cannot create the file", errno));
-  }
-  fd_ = UniqueFd(fd);
-  temp_ = name;
-  ::fchmod(fd, 0644);
-  buffer_.reset(static_cast<char*>(std::aligned_alloc(kBlock, kBufferSize)));
-  if (buffer_ == nullptr) {
-    return std::unexpected(IoError(path_, "cannot allocate the write buffer", ENOMEM));
-  }
-  // Refused (EINVAL) by file systems without direct I/O: the page cache it is.
-  const int flags = ::fcntl(fd, F_GETFL);
-  direct_ = flags >= 0 && ::fcntl(fd, F_SETFL, flags | O_DIRECT) == 0;
-  return {};
-}
-
-void AtomicFile::Append(std::string_view bytes) {
-  if (!direct_ && bytes.size() >= kUncopiedSize) {
-    // Large blocks (a PNG, a glTF buffer) go to the file without a copy.
-    Flush();
-    WriteAll(bytes);
-    return;
-  }
-  while (!bytes.empty()) {
-    const std::size_t n = std::min(bytes.size(), kBufferSize - end_);
-    std::memcpy(buffer_.get() + end_, bytes.data(), n);
-    end_ += n;
-    bytes.remove_prefix(n);
-    if (end_ == kBufferSize) {
-      Flush();
-    }
-  }
-}
-
-Expected<void> AtomicFile::Commit() {
-  Flush();
-  if (end_ > 0) {  // a direct file's last partial block: through the page cache
-    StopDirect();
-    Flush();
-  }
-  if (write_errno_ != 0) {
-    return std::unexpected(IoError(path_, "cannot write", write_errno_));
-  }
-  if (::fsync(fd_.get()) != 0) {
-    return std::unexpected(IoError(path_, "cannot sync", errno));
-  }
-  if (const int err = fd_.Close(); err != 0) {
-    return std::unexpected(IoError(path_, "cannot close", err));
-  }
-  if (::rename(temp_.c_str(), path_.c_str()) != 0) {
-    return std::unexpected(IoError(path_, "cannot rename the finished file into place", errno));
-  }
-  temp_.clear();
-  // Make the rename itself durable.
-  UniqueFd dir_fd(::open(DirectoryOf(path_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-  if (dir_fd.get() >= 0) {
-    ::fsync(dir_fd.get());
-  }
-  return {};
-}
-
-void AtomicFile::Flush() {
-  const std::size_t size = direct_ ? end_ / kBlock * kBlock : end_;
-  WriteAll(std::string_view(buffer_.get(), size));
-  if (size > 0) {
-    std::memmove(buffer_.get(), buffer_.get() + size, end_ - size);
-    end_ -= size;
-  }
-}
-
-void AtomicFile::StopDirect() {
-  const int flags = ::fcntl(fd_.get(), F_GETFL);
-  if (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags & ~O_DIRECT) != 0) {
-    if (write_errno_ == 0) {
-      write_errno_ = errno;
-    }
-  }
-  direct_ = false;
-}
-
-void AtomicFile::WriteAll(std::string_view bytes) {
-  std::size_t done = 0;
-  while (write_errno_ == 0 && done < bytes.size()) {
-    const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) {
-        continue;
-      }
-      if (errno == EINVAL && direct_) {
-        StopDirect();  // alignment or direct I/O refused: again through the page cache
-        continue;
-      }
-      write_errno_ = errno;
-    } else {
-      done += static_cast<std::size_t>(n);
-    }
-  }
-}
-
-Expected<void> WriteFileAtomically(const fs::path& path, std::string_view bytes) {
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
-  file.Append(bytes);
-  return file.Commit();
-}
 
 namespace {
 
@@ -374,18 +231,6 @@ IndexTexts::IndexTexts(int first, std::size_t count) : first_(first) {
       }
     }
   }
-}
-
-Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
 }
 
 Error BadFile(const std::filesystem::path& path, std::string_view what) {

@@ -1,4 +1,4 @@
-#include "station/calibrate_command.h"
+#include "station/commands/calibrate_command.h"
 
 #include <poll.h>
 #include <unistd.h>
@@ -22,8 +22,8 @@
 #include "calibrate/check.h"
 #include "calibrate/intrinsics.h"
 #include "capture/replay/replay_camera.h"
+#include "station/commands/scan_command.h"
 #include "station/devices.h"
-#include "station/scan_command.h"
 #include "station/station_config.h"
 #include "station/timing.h"
 

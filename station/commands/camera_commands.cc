@@ -1,4 +1,4 @@
-#include "station/apps/camera_commands.h"
+#include "station/commands/camera_commands.h"
 
 #include <chrono>
 #include <ostream>
@@ -12,7 +12,7 @@
 #include "capture/camera.h"
 #include "capture/segmenter.h"
 #include "config/config.h"
-#include "station/scan_command.h"
+#include "station/commands/scan_command.h"
 
 namespace revolve::station {
 namespace {

@@ -1,4 +1,4 @@
-#include "station/apps/turntable_commands.h"
+#include "station/commands/turntable_commands.h"
 
 #include <chrono>
 #include <filesystem>
@@ -10,7 +10,7 @@
 #include <fmt/ostream.h>
 
 #include "base/log.h"
-#include "station/scan_command.h"
+#include "station/commands/scan_command.h"
 #include "station/station_config.h"
 #include "turntable/modbus/profile.h"
 #include "turntable/modbus/profile_library.h"

@@ -1,4 +1,4 @@
-#include "station/scan_command.h"
+#include "station/commands/scan_command.h"
 
 #include <ostream>
 #include <set>
