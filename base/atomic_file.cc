@@ -1,9 +1,12 @@
 #include "base/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -17,53 +20,135 @@ namespace revolve {
 namespace {
 
 Error IoError(const std::filesystem::path& path, std::string_view what, int err) {
-  return Error{err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
-               fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
+  return Error{ErrorCode::kIo, fmt::format("{}: {}: {}", path.string(), what, std::strerror(err))};
 }
 
-std::filesystem::path TempPathFor(const std::filesystem::path& path) {
-  return path.parent_path() /
-         fmt::format(".{}.tmp-{}", path.filename().string(), static_cast<long>(::getpid()));
+std::filesystem::path DirectoryOf(const std::filesystem::path& path) {
+  std::filesystem::path dir = path.parent_path();
+  return dir.empty() ? std::filesystem::path(".") : dir;
 }
 
 }  // namespace
 
-Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::span<const char> bytes) {
-  const std::filesystem::path tmp = TempPathFor(path);
-  UniqueFd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-  if (fd.get() < 0) return std::unexpected(IoError(path, "cannot create file", errno));
-  const char* data = bytes.data();
-  std::size_t left = bytes.size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd.get(), data, left);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const int err = errno;
-      ::unlink(tmp.c_str());
-      return std::unexpected(IoError(path, "write failed", err));
-    }
-    data += n;
-    left -= static_cast<std::size_t>(n);
+void AtomicFile::FreeBuffer::operator()(char* p) const { std::free(p); }
+
+AtomicFile::~AtomicFile() {
+  if (!temp_.empty()) {
+    fd_.Close();
+    ::unlink(temp_.c_str());
   }
-  if (::fsync(fd.get()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return std::unexpected(IoError(path, "fsync failed", err));
+}
+
+Expected<void> AtomicFile::Open() {
+  std::string name =
+      (DirectoryOf(path_) / ("." + path_.filename().string() + ".tmp-XXXXXX")).string();
+  const int fd = ::mkostemp(name.data(), O_CLOEXEC);
+  if (fd < 0) {
+    return std::unexpected(IoError(path_, "cannot create the file", errno));
   }
-  if (::close(fd.Release()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return std::unexpected(IoError(path, "close failed", err));
+  fd_ = UniqueFd(fd);
+  temp_ = name;
+  ::fchmod(fd, 0644);
+  buffer_.reset(static_cast<char*>(std::aligned_alloc(kBlock, kBufferSize)));
+  if (buffer_ == nullptr) {
+    return std::unexpected(IoError(path_, "cannot allocate the write buffer", ENOMEM));
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return std::unexpected(IoError(path, "rename failed", err));
-  }
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
-  UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-  if (dir_fd.get() >= 0) ::fsync(dir_fd.get());
+  // Refused (EINVAL) by file systems without direct I/O: the page cache it is.
+  const int flags = ::fcntl(fd, F_GETFL);
+  direct_ = flags >= 0 && ::fcntl(fd, F_SETFL, flags | O_DIRECT) == 0;
   return {};
+}
+
+void AtomicFile::Append(std::string_view bytes) {
+  if (!direct_ && bytes.size() >= kUncopiedSize) {
+    // Large blocks (a PNG, a glTF buffer) go to the file without a copy.
+    Flush();
+    WriteAll(bytes);
+    return;
+  }
+  while (!bytes.empty()) {
+    const std::size_t n = std::min(bytes.size(), kBufferSize - end_);
+    std::memcpy(buffer_.get() + end_, bytes.data(), n);
+    end_ += n;
+    bytes.remove_prefix(n);
+    if (end_ == kBufferSize) {
+      Flush();
+    }
+  }
+}
+
+Expected<void> AtomicFile::Commit() {
+  Flush();
+  if (end_ > 0) {  // a direct file's last partial block: through the page cache
+    StopDirect();
+    Flush();
+  }
+  if (write_errno_ != 0) {
+    return std::unexpected(IoError(path_, "cannot write", write_errno_));
+  }
+  if (::fsync(fd_.get()) != 0) {
+    return std::unexpected(IoError(path_, "cannot sync", errno));
+  }
+  if (const int err = fd_.Close(); err != 0) {
+    return std::unexpected(IoError(path_, "cannot close", err));
+  }
+  if (::rename(temp_.c_str(), path_.c_str()) != 0) {
+    return std::unexpected(IoError(path_, "cannot rename the finished file into place", errno));
+  }
+  temp_.clear();
+  // Make the rename itself durable.
+  UniqueFd dir_fd(::open(DirectoryOf(path_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  if (dir_fd.get() >= 0) {
+    ::fsync(dir_fd.get());
+  }
+  return {};
+}
+
+void AtomicFile::Flush() {
+  const std::size_t size = direct_ ? end_ / kBlock * kBlock : end_;
+  WriteAll(std::string_view(buffer_.get(), size));
+  if (size > 0) {
+    std::memmove(buffer_.get(), buffer_.get() + size, end_ - size);
+    end_ -= size;
+  }
+}
+
+void AtomicFile::StopDirect() {
+  const int flags = ::fcntl(fd_.get(), F_GETFL);
+  if (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags & ~O_DIRECT) != 0) {
+    if (write_errno_ == 0) {
+      write_errno_ = errno;
+    }
+  }
+  direct_ = false;
+}
+
+void AtomicFile::WriteAll(std::string_view bytes) {
+  std::size_t done = 0;
+  while (write_errno_ == 0 && done < bytes.size()) {
+    const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) {
+        continue;
+      }
+      if (errno == EINVAL && direct_) {
+        StopDirect();  // alignment or direct I/O refused: again through the page cache
+        continue;
+      }
+      write_errno_ = errno;
+    } else {
+      done += static_cast<std::size_t>(n);
+    }
+  }
+}
+
+Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::span<const char> bytes) {
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
+  file.Append(std::string_view(bytes.data(), bytes.size()));
+  return file.Commit();
 }
 
 Expected<void> WriteFileAtomically(const std::filesystem::path& path,
@@ -75,6 +160,18 @@ Expected<void> WriteFileAtomically(const std::filesystem::path& path,
   }
   const std::string bytes = std::move(buffer).str();
   return WriteFileAtomically(path, std::span<const char>(bytes.data(), bytes.size()));
+}
+
+Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such file", path.string()));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return MakeError(ErrorCode::kIo, fmt::format("{}: cannot open", path.string()));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
 }
 
 }  // namespace revolve

@@ -1,18 +1,100 @@
 // Files that are never half-written: write to a temporary name in the same directory, fsync,
-// rename over the destination, fsync the directory.
+// rename over the destination, fsync the directory. The one atomic writer of the project: the
+// scan folder, the calibration, the configs and the model writers all go through it.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <ostream>
 #include <span>
+#include <string>
 #include <string_view>
 
 #include "base/error.h"
+#include "base/unique_fd.h"
 
 namespace revolve {
 
-// Writes `bytes` to `path` atomically. Errors (kIo / kNotFound) name the path and the reason
+// Buffered writer to a temporary file (".<name>.tmp-XXXXXX" beside `path`) that becomes `path`
+// on Commit (fsync, rename, fsync of the directory). Destroyed before Commit, or after a failed
+// one, it removes the temporary file. Errors name `path`.
+//
+// The writers build their bytes in place in the file's buffer (Room/End, PutEach) or hand them
+// over (Append). Where the file system allows it, whole blocks of the buffer go to the file with
+// O_DIRECT, without the kernel copying them into the page cache and writing them back at fsync
+// (the larger part of a model file's CPU time otherwise); the last partial block, and every
+// byte on a file system without O_DIRECT, go through the page cache. Durability is the same.
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::filesystem::path path) : path_(std::move(path)) {}
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile();
+
+  // Creates the temporary file; the calls below need it open.
+  Expected<void> Open();
+
+  // Where to write up to `n` (<= kRoomMax) more bytes; End(p) then marks p as the file's end.
+  static constexpr std::size_t kRoomMax = 4096;
+  char* Room(std::size_t n) {
+    if (end_ + n > kBufferSize) {
+      Flush();
+    }
+    return buffer_.get() + end_;
+  }
+  void End(const char* p) { end_ = static_cast<std::size_t>(p - buffer_.get()); }
+  // Writes items 0 .. count - 1 in order: `write_item(p, i)` writes item i at p, at most
+  // `max_bytes` (<= kRoomMax) of it, and returns its end. The room is checked once per block of
+  // items rather than once per item.
+  template <class WriteItem>
+  void PutEach(std::size_t count, std::size_t max_bytes, WriteItem write_item) {
+    for (std::size_t i = 0; i < count;) {
+      char* p = Room(kRoomMax);
+      const char* const last_start = p + (kRoomMax - max_bytes);
+      for (; i < count && p <= last_start; ++i) {
+        p = write_item(p, i);
+      }
+      End(p);
+    }
+  }
+  void Append(std::string_view bytes);
+  template <class T>
+  void AppendRaw(const T& value) {
+    Append(std::string_view(reinterpret_cast<const char*>(&value), sizeof(T)));
+  }
+  Expected<void> Commit();
+
+ private:
+  // The buffer: a multiple of kBlock, aligned to it.
+  static constexpr std::size_t kBufferSize = 1 << 20;
+  // O_DIRECT's unit: buffer address, file offset and length are multiples of it.
+  static constexpr std::size_t kBlock = 4096;
+  // Appended blocks at least this large skip the buffer when the file is not direct.
+  static constexpr std::size_t kUncopiedSize = 1 << 16;
+  struct FreeBuffer {
+    void operator()(char* p) const;
+  };
+  // Writes the buffer to the file: its whole blocks when direct (the rest moves to the buffer's
+  // start), else all of it.
+  void Flush();
+  // Writes all of `bytes` at the file's end (records the first error). A direct write the file
+  // system refuses turns O_DIRECT off and is written again.
+  void WriteAll(std::string_view bytes);
+  // Turns O_DIRECT off: what follows goes through the page cache.
+  void StopDirect();
+
+  std::filesystem::path path_;
+  std::string temp_;
+  UniqueFd fd_;
+  std::unique_ptr<char[], FreeBuffer> buffer_;
+  std::size_t end_ = 0;
+  bool direct_ = false;
+  int write_errno_ = 0;
+};
+
+// Writes `bytes` to `path` atomically. Errors (kIo) name the path and the reason
 // (e.g. "No space left on device"); on error no temporary file is left behind and an existing
 // file at `path` is untouched.
 Expected<void> WriteFileAtomically(const std::filesystem::path& path, std::span<const char> bytes);
@@ -20,10 +102,17 @@ inline Expected<void> WriteFileAtomically(const std::filesystem::path& path,
                                           std::string_view text) {
   return WriteFileAtomically(path, std::span<const char>(text.data(), text.size()));
 }
+inline Expected<void> WriteFileAtomically(const std::filesystem::path& path,
+                                          const std::string& text) {
+  return WriteFileAtomically(path, std::string_view(text));
+}
 
 // Same, for content produced by a stream writer (large binary meshes). `write` returns false
 // (or leaves the stream failed) to abandon the file.
 Expected<void> WriteFileAtomically(const std::filesystem::path& path,
                                    const std::function<bool(std::ostream&)>& write);
+
+// The whole file. Errors: kNotFound or kIo, naming the path.
+Expected<std::string> ReadWholeFile(const std::filesystem::path& path);
 
 }  // namespace revolve

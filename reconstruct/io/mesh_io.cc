@@ -14,7 +14,7 @@
 
 #include <fmt/format.h>
 
-#include "reconstruct/io/atomic_file.h"
+#include "reconstruct/io/writer_support.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -24,9 +24,7 @@ namespace fs = std::filesystem;
 static_assert(std::endian::native == std::endian::little,
               "the PLY writer and reader assume a little-endian host");
 
-using internal::AtomicFile;
 using internal::BadFile;
-using internal::ReadWholeFile;
 
 // Validates face indices and appends fan triangles of `polygon`.
 bool AddPolygon(const std::vector<int>& polygon, std::size_t vertex_count, Mesh* mesh) {

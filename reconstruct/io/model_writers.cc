@@ -13,7 +13,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 
-#include "reconstruct/io/atomic_file.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/io/mesh_io.h"
 
 namespace revolve::reconstruct {
@@ -26,9 +26,7 @@ static_assert(std::endian::native == std::endian::little,
 static_assert(sizeof(Eigen::Vector3f) == 12 && sizeof(Eigen::Vector3i) == 12,
               "the glTF writer copies packed triples of floats and of int indices");
 
-using internal::AtomicFile;
 using internal::BadFile;
-using internal::ReadWholeFile;
 
 constexpr const char* kMaterialName = "revolve";
 // Text coordinates: 0.1 um in millimetres, far below any scan's accuracy.

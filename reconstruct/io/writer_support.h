@@ -11,8 +11,8 @@
 #include <string_view>
 #include <vector>
 
-#include "base/error.h"
 #include "base/atomic_file.h"
+#include "base/error.h"
 #include "reconstruct/mesh.h"
 
 namespace revolve::reconstruct::internal {

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "reconstruct/hull/marching_cubes.h"
-#include "reconstruct/io/atomic_file.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/metrics/metrics.h"
 
 namespace revolve::reconstruct {
@@ -221,7 +221,7 @@ TEST_F(MeshIoTest, AtomicFileWritesLargeContentExactly) {
     expected += std::to_string(i) + ' ';
   }
   expected += large;
-  internal::AtomicFile file(dir_ / "big.bin");
+  AtomicFile file(dir_ / "big.bin");
   ASSERT_TRUE(file.Open().has_value());
   file.Append("header\n");
   file.PutEach(200000, internal::kMaxNumberChars, [](char* p, std::size_t i) {

@@ -17,7 +17,7 @@
 
 #include "capture/synthetic/render.h"
 #include "capture/synthetic/scene.h"
-#include "reconstruct/io/atomic_file.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/reconstructor.h"
