@@ -1,0 +1,706 @@
+// VisualHull::PlaceOnEdges: the sub-voxel crossing of every cut edge, all edges of a block and
+// view at a time (packed silhouettes, step bounds, walks along the segments).
+#include "reconstruct/hull/visual_hull.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <numeric>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+
+#include "reconstruct/hull/hull_internal.h"
+#include "reconstruct/hull/marching_cubes.h"
+
+namespace revolve::reconstruct {
+
+using namespace hull_internal;  // NOLINT(google-build-using-namespace): this library's own parts
+
+namespace {
+
+// How far (px, along u and along v) a segment of at most one voxel along grid axis `axis` can
+// move in a view's image, for segments inside the box whose 8 corners project to `projected`
+// (P * [X; 1]); infinite when part of the box is not in front of the camera. With
+// u(X) = x / w and a step d (x, w change by a = P0 . d, c = P2 . d), u(X + t d) - u(X) =
+// t (a - c u(X)) / w(X + t d), so |du| <= (|a - c u0| + |c| |u(X) - u0|) / w_min for any u0:
+// u0 at the middle of the box's u range (the box projects into the corners' convex hull) and
+// w_min the corners' least w (w is linear) bound it for every point of the box.
+struct StepBound {
+  double u_px[3];
+  double v_px[3];
+};
+StepBound MaxStepPx(const Matrix34d& p, const double (*projected)[3], double voxel_mm) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  StepBound bound{{kInfinity, kInfinity, kInfinity}, {kInfinity, kInfinity, kInfinity}};
+  double w_min = kInfinity;
+  double u_min = kInfinity, v_min = kInfinity, u_max = -kInfinity, v_max = -kInfinity;
+  for (int c = 0; c < 8; ++c) {
+    const double w = projected[c][2];
+    if (!(w > 0.0)) return bound;
+    w_min = std::min(w_min, w);
+    const double u = projected[c][0] / w;
+    const double v = projected[c][1] / w;
+    u_min = std::min(u_min, u);
+    u_max = std::max(u_max, u);
+    v_min = std::min(v_min, v);
+    v_max = std::max(v_max, v);
+  }
+  const double u0 = 0.5 * (u_min + u_max), half_u = 0.5 * (u_max - u_min);
+  const double v0 = 0.5 * (v_min + v_max), half_v = 0.5 * (v_max - v_min);
+  const double scale = voxel_mm / w_min;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double c = std::abs(p(2, axis));
+    const double u = (std::abs(p(0, axis) - u0 * p(2, axis)) + c * half_u) * scale;
+    const double v = (std::abs(p(1, axis) - v0 * p(2, axis)) + c * half_v) * scale;
+    if (std::isfinite(u) && std::isfinite(v)) {
+      bound.u_px[axis] = u;
+      bound.v_px[axis] = v;
+    }
+  }
+  return bound;
+}
+
+// Tests on a view's silhouette packed one bit per pixel over the bounding rectangle of its
+// non-zero pixels (ViewData::packed: a row fits a few cache lines, and the surface tests read
+// it at random).
+class PackedMask {
+ public:
+  // Rows of `words` words from `bits` over `roi` (as PackMask writes them).
+  PackedMask(const cv::Rect& roi, int words, const std::uint64_t* bits)
+      : roi_(roi), words_(words), bits_(bits) {}
+  // Whether every pixel of [u0, u1] x [v0, v1] (image pixels; empty: true) is on the
+  // silhouette. Pixels outside the rectangle are off. Inlined: the surface placement calls it
+  // about 1.5 million times.
+  [[gnu::always_inline]] bool AllOn(int u0, int v0, int u1, int v1) const {
+    if (u0 > u1 || v0 > v1) return true;
+    u0 -= roi_.x;
+    u1 -= roi_.x;
+    v0 -= roi_.y;
+    v1 -= roi_.y;
+    if (u0 < 0 || v0 < 0 || u1 >= roi_.width || v1 >= roi_.height) return false;
+    const int cols = u1 - u0 + 1;
+    if (cols > 57) return AllOnWide(u0, v0, u1, v1);
+    const std::uint64_t want = (std::uint64_t{1} << cols) - 1;
+    const int word = u0 >> 6;
+    const int shift = u0 & 63;
+    // Up to 4 rows without a branch per row (the outcome is hard to predict).
+    const int rows = v1 - v0 + 1;
+    std::uint64_t all = ~std::uint64_t{0};
+    for (int r = 0; r < std::max(rows, 4); ++r) {
+      const std::uint64_t* row =
+          &bits_[static_cast<std::size_t>(std::min(v0 + r, v1)) * words_ + word];
+      // (x << 1) << (63 - shift): the next word's low bits, 0 when shift is 0.
+      const std::uint64_t value = (row[0] >> shift) | ((row[1] << 1) << (63 - shift));
+      all &= value;
+    }
+    return (all & want) == want;
+  }
+
+  // on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) (1 or 0) for the `count` rectangles: with AVX2
+  // where the processor has it, four at a time.
+  void AllOnEach(const int* u0, const int* v0, const int* u1, const int* v1, std::size_t count,
+                 std::uint8_t* on) const {
+#if defined(REVOLVE_X86_AVX2)
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    // (With no bits, every rectangle is empty or outside: nothing to gather from.)
+    if (avx2 && roi_.width > 0 && roi_.height > 0) {
+      AllOnEachAvx2(u0, v0, u1, v1, count, on);
+      return;
+    }
+#endif
+    for (std::size_t i = 0; i < count; ++i) on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) ? 1 : 0;
+  }
+
+  // Whether every point of the convex hull of 8 points (their projections P * [X; 1]) that
+  // the view sees lands on the silhouette: ClassifyRect's kUnaffected.
+  bool AllOnOrUnseen(const double (*projected)[3], int width, int height) const {
+    double u_min = std::numeric_limits<double>::infinity();
+    double v_min = u_min, u_max = -u_min, v_max = -u_min;
+    int in_front = 0;
+    for (int c = 0; c < 8; ++c) {
+      if (!(projected[c][2] > 0.0)) continue;
+      ++in_front;
+      const double inv_w = 1.0 / projected[c][2];
+      const double u = projected[c][0] * inv_w;
+      const double v = projected[c][1] * inv_w;
+      u_min = std::min(u_min, u);
+      u_max = std::max(u_max, u);
+      v_min = std::min(v_min, v);
+      v_max = std::max(v_max, v);
+    }
+    if (in_front == 0) return true;  // all behind the camera
+    if (in_front < 8) return false;  // straddles the camera's plane
+    auto pixel = [](double x, int size) {
+      return static_cast<int>(std::floor(std::clamp(x + 0.5, -1.0, size + 1.0)));
+    };
+    const int u0 = std::max(pixel(u_min - kRectMarginPx, width), 0);
+    const int u1 = std::min(pixel(u_max + kRectMarginPx, width), width - 1);
+    const int v0 = std::max(pixel(v_min - kRectMarginPx, height), 0);
+    const int v1 = std::min(pixel(v_max + kRectMarginPx, height), height - 1);
+    return AllOn(u0, v0, u1, v1);  // empty (outside the image): not seen
+  }
+
+ private:
+  // AllOnEach four rectangles at a time, with AVX2 (a row's two words of the four gathered at
+  // once); the rectangles of more than 4 rows or 57 columns, which AllOn does not do branch-free
+  // either, are left to it.
+#if defined(REVOLVE_X86_AVX2)
+  [[gnu::target("avx2")]] void AllOnEachAvx2(const int* u0, const int* v0, const int* u1,
+                                             const int* v1, std::size_t count,
+                                             std::uint8_t* on) const {
+    const __m128i roi_x = _mm_set1_epi32(roi_.x), roi_y = _mm_set1_epi32(roi_.y);
+    const __m128i last_x = _mm_set1_epi32(roi_.width - 1);
+    const __m128i last_y = _mm_set1_epi32(roi_.height - 1);
+    const __m128i zero = _mm_setzero_si128(), one = _mm_set1_epi32(1);
+    const __m128i words = _mm_set1_epi32(words_);
+    const __m128i max_cols = _mm_set1_epi32(57), max_rows = _mm_set1_epi32(4);
+    const auto* bits = reinterpret_cast<const long long*>(bits_);
+    std::size_t i = 0;
+    for (; i + 4 <= count; i += 4) {
+      const __m128i x0 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(u0 + i)), roi_x);
+      const __m128i x1 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(u1 + i)), roi_x);
+      const __m128i y0 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(v0 + i)), roi_y);
+      const __m128i y1 =
+          _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(v1 + i)), roi_y);
+      // Lanes: empty (true), outside the rectangle of bits (false), too large (AllOn).
+      const __m128i empty = _mm_or_si128(_mm_cmpgt_epi32(x0, x1), _mm_cmpgt_epi32(y0, y1));
+      const __m128i outside =
+          _mm_or_si128(_mm_or_si128(_mm_cmplt_epi32(x0, zero), _mm_cmplt_epi32(y0, zero)),
+                       _mm_or_si128(_mm_cmpgt_epi32(x1, last_x), _mm_cmpgt_epi32(y1, last_y)));
+      const __m128i cols = _mm_add_epi32(_mm_sub_epi32(x1, x0), one);
+      const __m128i rows = _mm_add_epi32(_mm_sub_epi32(y1, y0), one);
+      const __m128i large =
+          _mm_or_si128(_mm_cmpgt_epi32(cols, max_cols), _mm_cmpgt_epi32(rows, max_rows));
+      // The rows of every lane, clamped into the bits (the results of lanes decided above
+      // are not used).
+      const __m128i x = _mm_min_epi32(_mm_max_epi32(x0, zero), last_x);
+      const __m128i first_row = _mm_min_epi32(_mm_max_epi32(y0, zero), last_y);
+      const __m128i last_row = _mm_max_epi32(_mm_min_epi32(y1, last_y), first_row);
+      const __m128i word = _mm_srai_epi32(x, 6);
+      const __m256i shift = _mm256_cvtepi32_epi64(_mm_and_si128(x, _mm_set1_epi32(63)));
+      const __m256i back = _mm256_sub_epi64(_mm256_set1_epi64x(63), shift);
+      __m256i all = _mm256_set1_epi64x(-1);
+      for (int r = 0; r < 4; ++r) {
+        const __m128i row = _mm_min_epi32(_mm_add_epi32(first_row, _mm_set1_epi32(r)), last_row);
+        const __m128i at = _mm_add_epi32(_mm_mullo_epi32(row, words), word);
+        const __m256i low = _mm256_i32gather_epi64(bits, at, 8);
+        const __m256i high = _mm256_i32gather_epi64(bits + 1, at, 8);
+        // (high << 1) << (63 - shift): the next word's low bits, 0 when shift is 0.
+        const __m256i value = _mm256_or_si256(_mm256_srlv_epi64(low, shift),
+                                              _mm256_sllv_epi64(_mm256_slli_epi64(high, 1), back));
+        all = _mm256_and_si256(all, value);
+      }
+      const __m256i width =
+          _mm256_cvtepi32_epi64(_mm_min_epi32(_mm_max_epi32(cols, one), max_cols));
+      const __m256i want =
+          _mm256_sub_epi64(_mm256_sllv_epi64(_mm256_set1_epi64x(1), width), _mm256_set1_epi64x(1));
+      const int full = _mm256_movemask_pd(
+          _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(all, want), want)));
+      const int empty_mask = _mm_movemask_ps(_mm_castsi128_ps(empty));
+      const int outside_mask = _mm_movemask_ps(_mm_castsi128_ps(outside));
+      const int large_mask = _mm_movemask_ps(_mm_castsi128_ps(large));
+      for (int lane = 0; lane < 4; ++lane) {
+        const int bit = 1 << lane;
+        if (empty_mask & bit) {
+          on[i + lane] = 1;
+        } else if (outside_mask & bit) {
+          on[i + lane] = 0;
+        } else if (large_mask & bit) {
+          on[i + lane] = AllOn(u0[i + lane], v0[i + lane], u1[i + lane], v1[i + lane]) ? 1 : 0;
+        } else {
+          on[i + lane] = (full & bit) ? 1 : 0;
+        }
+      }
+    }
+    for (; i < count; ++i) on[i] = AllOn(u0[i], v0[i], u1[i], v1[i]) ? 1 : 0;
+  }
+#endif
+
+  bool AllOnWide(int u0, int v0, int u1, int v1) const {
+    for (int v = v0; v <= v1; ++v) {
+      for (int u = u0; u <= u1; ++u) {
+        if (!((bits_[static_cast<std::size_t>(v) * words_ + (u >> 6)] >> (u & 63)) & 1)) {
+          return false;
+        }
+      }
+    }
+    return true;
+  }
+
+  cv::Rect roi_;
+  int words_ = 0;
+  const std::uint64_t* bits_ = nullptr;
+};
+
+// P * [X; 1] = (hx, hy, w) and the pixel (u, v) = (hx / w, hy / w) of `count` points (SoA),
+// each as Project computes it (the same operations in the same order, so the same values; the
+// loop is vectorised).
+void ProjectPoints(const Matrix34d& p, const double* __restrict x, const double* __restrict y,
+                   const double* __restrict z, std::size_t count, double* __restrict hx_out,
+                   double* __restrict hy_out, double* __restrict w, double* __restrict u,
+                   double* __restrict v) {
+  const double p00 = p(0, 0), p01 = p(0, 1), p02 = p(0, 2), p03 = p(0, 3);
+  const double p10 = p(1, 0), p11 = p(1, 1), p12 = p(1, 2), p13 = p(1, 3);
+  const double p20 = p(2, 0), p21 = p(2, 1), p22 = p(2, 2), p23 = p(2, 3);
+  for (std::size_t i = 0; i < count; ++i) {
+    const double hx = p00 * x[i] + p01 * y[i] + p02 * z[i] + p03;
+    const double hy = p10 * x[i] + p11 * y[i] + p12 * z[i] + p13;
+    const double hw = p20 * x[i] + p21 * y[i] + p22 * z[i] + p23;
+    hx_out[i] = hx;
+    hy_out[i] = hy;
+    w[i] = hw;
+    u[i] = hx / hw;
+    v[i] = hy / hw;
+  }
+}
+
+// The nearest pixel of x (used in front of the camera only; NaN and huge values are clamped so
+// that the conversion is defined).
+inline int NearestPixel(double x) {
+  return static_cast<int>(std::floor((x > -1e9 ? (x < 1e9 ? x : 1e9) : -1e9) + 0.5));
+}
+
+// The nearest pixels (NearestPixel) of `count` points (hx / w, hy / w), as FirstExit computes
+// its end pixel. A loop of its own, apart from the tests that depend on it, so that the
+// divisions of successive points overlap; the AVX2 build (where the processor has it) rounds
+// with one instruction.
+#if defined(__x86_64__) && defined(__GNUC__)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void NearestPixels(const double* __restrict hx, const double* __restrict hy,
+                   const double* __restrict w, std::size_t count, int* __restrict u,
+                   int* __restrict v) {
+  for (std::size_t i = 0; i < count; ++i) {
+    u[i] = NearestPixel(hx[i] / w[i]);
+    v[i] = NearestPixel(hy[i] / w[i]);
+  }
+}
+
+}  // namespace
+
+std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
+                                             std::optional<double> clip_below_z_mm,
+                                             bool cull_views) const {
+  const std::size_t n = edges.size();
+  const int views = view_count();
+  // Each edge with the part of it that can hold the crossing (all of it, or up to the grid's
+  // face for an edge leaving the grid, or up to the clip plane), grouped by its inside sample,
+  // the samples sorted by block of 16 voxels, brick, then voxel. Per view, a block the view
+  // cannot act on (its box grown by one voxel contains every segment of its edges) is skipped;
+  // in the others, a sample whose neighbourhood (as far as its segments can move in the image)
+  // is all on the silhouette skips its edges, then an edge whose end pixels' rectangle is all
+  // on the silhouette; the rest are walked.
+  struct Item {
+    double t_max;
+    std::uint32_t edge;
+    std::int8_t axis;
+    std::int8_t sign;
+  };
+  const Eigen::Vector3i block_dims = (brick_dims_ + Eigen::Vector3i::Constant(3)) / 4;
+  auto block_of = [&](const Eigen::Vector3i& voxel) {
+    const Eigen::Vector3i block = voxel / (4 * kBrick);
+    return static_cast<std::uint32_t>(
+        (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x());
+  };
+  // A voxel's place in its block: brick within the block (bits 6-11), voxel within the brick.
+  auto local_key = [](const Eigen::Vector3i& voxel) {
+    const Eigen::Vector3i brick = voxel / kBrick;
+    const Eigen::Vector3i local = brick - 4 * (brick / 4);
+    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
+    return static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
+           static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
+  };
+  // The edges as (what the placement needs of the edge << 44 | local key << 32 | edge index),
+  // grouped by block (a counting sort), then sorted by local key within each block (a few
+  // hundred edges). What it needs: the axis (bits 0-1), whether the step is positive (bit 2)
+  // and whether the edge leaves the grid (bit 3).
+  std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
+  for (const GridEdge& edge : edges) ++start[block_of(edge.inside.cwiseMax(0)) + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  const auto order = std::make_unique_for_overwrite<std::uint64_t[]>(n);
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t e = 0; e < n; ++e) {
+      const GridEdge& edge = edges[e];
+      const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
+      const Eigen::Vector3i step = edge.outside - edge.inside;
+      const int axis = step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2);
+      const bool leaves =
+          ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
+      const std::uint64_t need = static_cast<std::uint64_t>(axis) |
+                                 static_cast<std::uint64_t>(step[axis] > 0) << 2 |
+                                 static_cast<std::uint64_t>(leaves) << 3;
+      order[fill[block_of(voxel)]++] = (need << 12 | local_key(voxel)) << 32 | e;
+    }
+  }
+  {
+    // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
+    // sample stay in the order of their indices).
+    std::size_t most = 0;
+    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+      most = std::max(most, start[b + 1] - start[b]);
+    }
+    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
+    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+      const std::size_t count = start[b + 1] - start[b];
+      if (count < 2) continue;
+      std::uint64_t* from = &order[start[b]];
+      std::uint64_t* to = scratch.get();
+      for (const int shift : {32, 38}) {
+        std::array<std::uint32_t, 65> at{};
+        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
+        std::partial_sum(at.begin(), at.end(), at.begin());
+        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
+        std::swap(from, to);
+      }
+    }
+  }
+
+  struct Sample {  // an inside sample and its edges, items[first, first + count)
+    std::uint8_t count;
+    std::uint8_t axes;  // bit a: an edge along axis a
+    std::uint32_t first;
+  };
+  struct Block {
+    std::size_t begin, end;  // bricks
+    Eigen::Vector3d corners[8];
+  };
+  // Points as structure of arrays (a sample's or a brick's centre).
+  struct Points {
+    std::vector<double> x, y, z;
+    void Add(const Eigen::Vector3d& c) {
+      x.push_back(c.x());
+      y.push_back(c.y());
+      z.push_back(c.z());
+    }
+  };
+  std::vector<Item> items;  // in the order of `order`
+  std::vector<Sample> samples;
+  Points sample_centre;
+  std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
+  Points brick_centre;
+  // Per brick: the box of its samples' segments (grid coordinates, voxels).
+  std::vector<Eigen::Vector3d> brick_lo, brick_hi;
+  std::vector<Block> blocks;
+  // At most one sample, brick and block per edge: room for them, so that the arrays are not
+  // moved as they grow (only the pages written are given memory).
+  const std::size_t brick_bound = std::min(n, static_cast<std::size_t>(brick_dims_.prod()));
+  items.reserve(n);
+  samples.reserve(n);
+  brick_start.reserve(brick_bound + 1);
+  brick_lo.reserve(brick_bound);
+  brick_hi.reserve(brick_bound);
+  blocks.reserve(std::min(n, static_cast<std::size_t>(block_dims.prod())));
+  for (auto [points, size] :
+       {std::pair{&sample_centre, n}, std::pair{&brick_centre, brick_bound}}) {
+    points->x.reserve(size);
+    points->y.reserve(size);
+    points->z.reserve(size);
+  }
+  for (std::size_t b = 0; b + 1 < start.size(); ++b) {
+    const std::size_t end = start[b + 1];
+    if (start[b] == end) continue;
+    Block& block = blocks.emplace_back();
+    block.begin = brick_start.size();
+    // The block's first voxel.
+    const auto index = static_cast<int>(b);
+    const Eigen::Vector3i block_voxel =
+        4 * kBrick *
+        Eigen::Vector3i(index % block_dims.x(), index / block_dims.x() % block_dims.y(),
+                        index / (block_dims.x() * block_dims.y()));
+    {
+      // The block's voxel centres grown by one voxel.
+      const Eigen::Vector3i lo = block_voxel - Eigen::Vector3i::Ones();
+      const Eigen::Vector3i hi = lo + Eigen::Vector3i::Constant(4 * kBrick + 1);
+      const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
+      const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
+      for (int c = 0; c < 8; ++c) {
+        block.corners[c] =
+            Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
+      }
+    }
+    std::uint64_t brick_key = ~std::uint64_t{0};
+    for (std::size_t i = start[b]; i < end;) {
+      const std::uint64_t key = order[i] >> 32 & 0xFFF;
+      const auto local = static_cast<int>(key);
+      const Eigen::Vector3i voxel =
+          block_voxel + kBrick * Eigen::Vector3i(local >> 6 & 3, local >> 8 & 3, local >> 10 & 3) +
+          Eigen::Vector3i(local & 3, local >> 2 & 3, local >> 4 & 3);
+      // The sample's edges become items.
+      std::size_t j = i;
+      std::uint8_t axes = 0;
+      for (; j < end && (order[j] >> 32 & 0xFFF) == key; ++j) {
+        const std::uint64_t need = order[j] >> 44;
+        Item& item = items.emplace_back();
+        item.axis = static_cast<std::int8_t>(need & 3);
+        item.sign = static_cast<std::int8_t>(need & 4 ? 1 : -1);
+        item.edge = static_cast<std::uint32_t>(order[j]);
+        item.t_max = need & 8 ? 0.5 : 1.0;
+        if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
+          const double z = grid_.Centre(0, 0, voxel.z()).z();
+          const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
+          if (to_plane >= 0.0 && to_plane < item.t_max) {
+            item.t_max = to_plane;
+          }
+        }
+        axes |= 1 << item.axis;
+      }
+      if ((key >> 6) != brick_key) {
+        brick_key = key >> 6;
+        brick_start.push_back(samples.size());
+        brick_lo.push_back(voxel.cast<double>());
+        brick_hi.push_back(voxel.cast<double>());
+        block.end = brick_start.size();
+      }
+      // The segments' ends.
+      for (std::size_t k = i; k < j; ++k) {
+        Eigen::Vector3d tip = voxel.cast<double>();
+        tip[items[k].axis] += items[k].sign * items[k].t_max;
+        brick_lo.back() = brick_lo.back().cwiseMin(tip);
+        brick_hi.back() = brick_hi.back().cwiseMax(tip);
+      }
+      samples.push_back(
+          Sample{static_cast<std::uint8_t>(j - i), axes, static_cast<std::uint32_t>(i)});
+      sample_centre.Add(grid_.Centre(voxel.x(), voxel.y(), voxel.z()));
+      i = j;
+    }
+  }
+  brick_start.push_back(samples.size());
+  // Each brick's middle (mm) and half extents (voxels).
+  std::vector<Eigen::Vector3d> brick_half(brick_lo.size());
+  for (std::size_t b = 0; b < brick_lo.size(); ++b) {
+    brick_centre.Add(grid_.Centre(0, 0, 0) + grid_.voxel_mm * 0.5 * (brick_lo[b] + brick_hi[b]));
+    brick_half[b] = 0.5 * (brick_hi[b] - brick_lo[b]);
+  }
+  std::size_t largest_block = 0;  // in samples
+  std::size_t most_bricks = 0;
+  std::size_t most_items = 0;
+  for (const Block& block : blocks) {
+    const std::size_t first = brick_start[block.begin];
+    const std::size_t last = brick_start[block.end];
+    largest_block = std::max(largest_block, last - first);
+    most_bricks = std::max(most_bricks, block.end - block.begin);
+    most_items = std::max<std::size_t>(
+        most_items, samples[last - 1].first + samples[last - 1].count - samples[first].first);
+  }
+  // Per block and view: the bricks' projections, then the samples of the bricks the view may
+  // act on (gathered), their projections, and the samples to walk.
+  std::vector<double> brick_hx(most_bricks), brick_hy(most_bricks), brick_w(most_bricks);
+  std::vector<double> brick_u(most_bricks), brick_v(most_bricks);
+  Points gathered;
+  gathered.x.resize(largest_block);
+  gathered.y.resize(largest_block);
+  gathered.z.resize(largest_block);
+  std::vector<std::uint32_t> gathered_sample(largest_block);
+  std::vector<double> sample_hx(largest_block), sample_hy(largest_block), sample_w(largest_block);
+  std::vector<double> sample_u(largest_block), sample_v(largest_block);
+  std::vector<std::uint32_t> walk(largest_block);
+  // Rectangles of pixels to test together (AllOnEach): the samples', then the items'.
+  const std::size_t most_rects = std::max(largest_block, most_items);
+  std::vector<int> rect_u0(most_rects), rect_v0(most_rects), rect_u1(most_rects),
+      rect_v1(most_rects);
+  std::vector<std::uint8_t> rect_on(most_rects);
+  // The items of the samples to walk: item, sample (gathered), the part of the segment that
+  // can matter, and its end (P * [X; 1]; then the nearest pixel).
+  std::vector<std::uint32_t> walk_item(most_items), walk_sample(most_items);
+  std::vector<double> walk_t(most_items), end_x(most_items), end_y(most_items), end_w(most_items);
+  std::vector<int> end_u(most_items), end_v(most_items);
+  std::vector<double> t_item(n);
+  for (std::size_t k = 0; k < n; ++k) t_item[k] = items[k].t_max + 1.0;
+  // Per sample, the longest part of its edges that can still hold a crossing (in voxels).
+  std::vector<double> sample_t(samples.size());
+  for (std::size_t s = 0; s < samples.size(); ++s) {
+    for (std::size_t k = samples[s].first; k < samples[s].first + samples[s].count; ++k) {
+      sample_t[s] = std::max(sample_t[s], items[k].t_max);
+    }
+  }
+  for (int v = 0; v < views; ++v) {
+    const ViewData& view = views_[v];
+    const Matrix34d& p = view.pixel_from_object;
+    const cv::Mat& mask = view.mask01;
+    const PackedMask packed(view.roi, view.packed_words, view.packed.data());
+    // P * d for the six steps (axis, sign), as FirstExit computes it.
+    double step_h[3][2][3];
+    for (int axis = 0; axis < 3; ++axis) {
+      for (int s = 0; s < 2; ++s) {
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[axis] = (s == 0 ? -1 : 1) * grid_.voxel_mm;
+        for (int r = 0; r < 3; ++r) {
+          step_h[axis][s][r] = p(r, 0) * d.x() + p(r, 1) * d.y() + p(r, 2) * d.z();
+        }
+      }
+    }
+    // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
+    // (shifted by half a pixel) are all in the image and on the silhouette.
+    auto all_on_around = [&](double w, double u, double pv, double reach_u, double reach_v)
+        __attribute__((always_inline)) {
+      const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
+      const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
+      return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
+             packed.AllOn(static_cast<int>(u_lo), static_cast<int>(v_lo), static_cast<int>(u_hi),
+                          static_cast<int>(v_hi));
+    };
+    for (const Block& block : blocks) {
+      // How far the segments can move in the image (px): per set of axes (bit a: axis a) for a
+      // sample's segments of one voxel, and per voxel along each axis for a brick's (below).
+      // Infinite (NaN when multiplied by 0) where part of the block is behind the camera: then
+      // nothing is left out.
+      double reach_u[8], reach_v[8];
+      std::fill(std::begin(reach_u), std::end(reach_u), std::numeric_limits<double>::infinity());
+      std::fill(std::begin(reach_v), std::end(reach_v), std::numeric_limits<double>::infinity());
+      StepBound bound{};
+      if (cull_views) {
+        double projected[8][3];
+        for (int c = 0; c < 8; ++c) {
+          const Homogeneous h = Project(p, block.corners[c]);
+          projected[c][0] = h.x;
+          projected[c][1] = h.y;
+          projected[c][2] = h.w;
+        }
+        if (packed.AllOnOrUnseen(projected, mask.cols, mask.rows)) continue;
+        bound = MaxStepPx(p, projected, grid_.voxel_mm);
+        for (int axes = 1; axes < 8; ++axes) {
+          double u = 0.0, w = 0.0;
+          for (int axis = 0; axis < 3; ++axis) {
+            if (axes & (1 << axis)) {
+              u = std::max(u, bound.u_px[axis]);
+              w = std::max(w, bound.v_px[axis]);
+            }
+          }
+          reach_u[axes] = u;
+          reach_v[axes] = w;
+        }
+      }
+      // Bricks: those whose box is all on the silhouette are left out.
+      const std::size_t bricks = block.end - block.begin;
+      ProjectPoints(p, &brick_centre.x[block.begin], &brick_centre.y[block.begin],
+                    &brick_centre.z[block.begin], bricks, brick_hx.data(), brick_hy.data(),
+                    brick_w.data(), brick_u.data(), brick_v.data());
+      std::size_t count = 0;
+      for (std::size_t b = 0; b < bricks; ++b) {
+        // From the middle to a corner of the box of the brick's segments: three legs along the
+        // axes, each inside the block's box, plus a margin for the rounding of the projections
+        // (~1e-12 px).
+        const Eigen::Vector3d& half = brick_half[block.begin + b];
+        const double brick_reach_u =
+            half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
+        const double brick_reach_v =
+            half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
+        if (cull_views &&
+            all_on_around(brick_w[b], brick_u[b], brick_v[b], brick_reach_u, brick_reach_v)) {
+          continue;
+        }
+        for (std::size_t s = brick_start[block.begin + b]; s < brick_start[block.begin + b + 1];
+             ++s) {
+          gathered.x[count] = sample_centre.x[s];
+          gathered.y[count] = sample_centre.y[s];
+          gathered.z[count] = sample_centre.z[s];
+          gathered_sample[count++] = static_cast<std::uint32_t>(s);
+        }
+      }
+      ProjectPoints(p, gathered.x.data(), gathered.y.data(), gathered.z.data(), count,
+                    sample_hx.data(), sample_hy.data(), sample_w.data(), sample_u.data(),
+                    sample_v.data());
+      // Samples: those whose segments all stay on the silhouette are left out (no branch on
+      // the outcome: it is hard to predict).
+      // The rectangles are made first (all_on_around's; one outside the silhouette's where
+      // that is false before any pixel is read), then tested together.
+      for (std::size_t g = 0; g < count; ++g) {
+        const std::uint32_t s = gathered_sample[g];
+        const std::uint8_t axes = samples[s].axes;
+        // The segments are as long as the part of them that can still hold the crossing.
+        const double t = sample_t[s];
+        const double around_u = reach_u[axes] * t + 1e-6, around_v = reach_v[axes] * t + 1e-6;
+        const double u_lo = sample_u[g] + 0.5 - around_u, u_hi = sample_u[g] + 0.5 + around_u;
+        const double v_lo = sample_v[g] + 0.5 - around_v, v_hi = sample_v[g] + 0.5 + around_v;
+        const bool in_image =
+            sample_w[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows;
+        rect_u0[g] = static_cast<int>(in_image ? u_lo : -1.0);
+        rect_v0[g] = static_cast<int>(in_image ? v_lo : -1.0);
+        rect_u1[g] = static_cast<int>(in_image ? u_hi : -1.0);
+        rect_v1[g] = static_cast<int>(in_image ? v_hi : -1.0);
+      }
+      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), count,
+                       rect_on.data());
+      std::size_t walks = 0;
+      for (std::size_t g = 0; g < count; ++g) {
+        walk[walks] = static_cast<std::uint32_t>(g);
+        walks += rect_on[g] != 0 ? 0 : 1;
+      }
+      // The items of the samples to walk, with the end of the part of their segment that can
+      // matter: only the part before the nearest exit found so far (the walk of the shorter
+      // segment visits a prefix of the same cells, the same result where it matters, and its
+      // end rectangle is smaller, so it more often ends at once).
+      std::size_t m = 0;
+      for (std::size_t q = 0; q < walks; ++q) {
+        const std::size_t g = walk[q];
+        const Sample& sample = samples[gathered_sample[g]];
+        double longest = 0.0;
+        for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
+          const Item& item = items[k];
+          const double t_max = std::min(item.t_max, t_item[k]);
+          longest = std::max(longest, t_max);
+          const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+          walk_item[m] = static_cast<std::uint32_t>(k);
+          walk_sample[m] = static_cast<std::uint32_t>(g);
+          walk_t[m] = t_max;
+          end_x[m] = sample_hx[g] + t_max * hd[0];
+          end_y[m] = sample_hy[g] + t_max * hd[1];
+          end_w[m] = sample_w[g] + t_max * hd[2];
+          ++m;
+        }
+        sample_t[gathered_sample[g]] = longest;
+      }
+      NearestPixels(end_x.data(), end_y.data(), end_w.data(), m, end_u.data(), end_v.data());
+      // FirstExit's first test, on the same values, for the segments in front of the camera:
+      // the rectangle of the end pixels, clamped to the image (the others' is not used).
+      for (std::size_t r = 0; r < m; ++r) {
+        const std::size_t g = walk_sample[r];
+        const int iu = NearestPixel(sample_u[g]);
+        const int iv = NearestPixel(sample_v[g]);
+        rect_u0[r] = std::max(std::min(iu, end_u[r]), 0);
+        rect_u1[r] = std::min(std::max(iu, end_u[r]), mask.cols - 1);
+        rect_v0[r] = std::max(std::min(iv, end_v[r]), 0);
+        rect_v1[r] = std::min(std::max(iv, end_v[r]), mask.rows - 1);
+      }
+      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), m,
+                       rect_on.data());
+      for (std::size_t r = 0; r < m; ++r) {
+        const std::size_t k = walk_item[r];
+        const std::size_t g = walk_sample[r];
+        const Item& item = items[k];
+        const double t_max = walk_t[r];
+        const double hx = sample_hx[g];
+        const double hy = sample_hy[g];
+        const double hw = sample_w[g];
+        const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+        if (hw > 0.0 && end_w[r] > 0.0) {
+          if (rect_on[r] != 0) continue;
+          t_item[k] =
+              std::min(t_item[k], WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sample_u[g]),
+                                            NearestPixel(sample_v[g]), end_u[r], end_v[r]));
+          continue;
+        }
+        const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[item.axis] = item.sign * grid_.voxel_mm;
+        t_item[k] = std::min(t_item[k], FirstExit(view, a, d, t_max));
+      }
+    }
+  }
+  // No view cuts the segment: its end (the grid's face, the plane, or rounding for an edge
+  // inside the grid, whose outside sample some view carved).
+  std::vector<double> t(n);
+  for (std::size_t k = 0; k < n; ++k) t[items[k].edge] = std::min(t_item[k], items[k].t_max);
+  return t;
+}
+
+}  // namespace revolve::reconstruct
