@@ -97,13 +97,15 @@ void Section::Note(std::string_view key, std::string_view type, std::string fall
                    std::optional<double> min, std::optional<double> max,
                    std::initializer_list<std::string_view> allowed) const {
   if (document_->reference == nullptr) return;
-  document_->reference->Note(KeyRecord{.table = path_,
-                                       .key = std::string(key),
-                                       .type = std::string(type),
-                                       .fallback = std::move(fallback),
-                                       .min = min,
-                                       .max = max,
-                                       .allowed = {allowed.begin(), allowed.end()}});
+  KeyRecord record;
+  record.table = path_;
+  record.key = key;
+  record.type = type;
+  record.fallback = std::move(fallback);
+  record.min = min;
+  record.max = max;
+  record.allowed.assign(allowed.begin(), allowed.end());
+  document_->reference->Note(std::move(record));
 }
 
 KeyRecord* Section::Recorded(std::string_view key) const {

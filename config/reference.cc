@@ -117,19 +117,28 @@ std::string MarkdownReference(const Reference& reference, std::string_view intro
   }
   out += "\n";
   for (const std::string& table : order) {
-    out += fmt::format("\n## `[{}]`\n\n", table);
+    out += fmt::format("\n## `[{}]`\n", table);
     for (const TableDoc& t : tables) {
-      if (t.table == table && !t.text.empty()) out += fmt::format("{}\n\n", t.text);
+      if (t.table == table && !t.text.empty()) out += fmt::format("\n{}\n", t.text);
     }
-    // The keys of the table in the order they are read; a key read as two types is one row.
+    // The keys of the table in the order of their descriptions, then any other in the order
+    // they are read; a key read as two types is one row.
     std::vector<std::string> names;
+    auto add = [&](std::string_view key) {
+      const bool read =
+          std::any_of(reference.keys().begin(), reference.keys().end(),
+                      [&](const KeyRecord& r) { return r.table == table && r.key == key; });
+      if (read && std::find(names.begin(), names.end(), key) == names.end())
+        names.emplace_back(key);
+    };
+    for (const KeyDoc& d : keys) {
+      if (d.table == table) add(d.key);
+    }
     for (const KeyRecord& r : reference.keys()) {
-      if (r.table == table && std::find(names.begin(), names.end(), r.key) == names.end()) {
-        names.push_back(r.key);
-      }
+      if (r.table == table) add(r.key);
     }
     if (names.empty()) continue;
-    out += "| key | type | default | allowed | meaning |\n|---|---|---|---|---|\n";
+    out += "\n| key | type | default | allowed | meaning |\n|---|---|---|---|---|\n";
     for (const std::string& name : names) {
       std::vector<const KeyRecord*> records;
       for (const KeyRecord& r : reference.keys()) {
@@ -139,15 +148,14 @@ std::string MarkdownReference(const Reference& reference, std::string_view intro
       std::string type = Joined(records, [](const KeyRecord& r) { return r.type; });
       if (doc != nullptr && !doc->unit.empty()) type += fmt::format(" ({})", doc->unit);
       std::string fallback = Joined(records, [](const KeyRecord& r) {
-        return r.optional ? std::string("unset") : r.fallback;
+        return r.optional ? std::string("unset") : "`" + r.fallback + "`";
       });
       std::string allowed = Joined(records, Allowed);
       if (doc != nullptr && !doc->type_override.empty()) type = doc->type_override;
       if (doc != nullptr && !doc->default_override.empty()) fallback = doc->default_override;
       if (doc != nullptr && !doc->allowed_override.empty()) allowed = doc->allowed_override;
-      out += fmt::format("| `{}` | {} | {} | {} | {} |\n", name, Cell(type),
-                         fallback.empty() ? "" : Cell("`" + fallback + "`"), Cell(allowed),
-                         doc != nullptr ? Cell(doc->text) : "");
+      out += fmt::format("| `{}` | {} | {} | {} | {} |\n", name, Cell(type), Cell(fallback),
+                         Cell(allowed), doc != nullptr ? Cell(doc->text) : "");
     }
   }
   return out;

@@ -39,9 +39,9 @@ class Reference {
   std::vector<KeyRecord> keys_;
 };
 
-// The description of one key; `unit` and the overrides are optional. An override replaces
-// what the records say, for the few keys a parser reads in more than one way (an integer or a
-// string, say).
+// The description of one key; `unit` and the overrides are optional. An override (Markdown)
+// replaces what the records say, for the few keys a parser reads in more than one way (an
+// integer or a string, say) or checks beyond the getter's range.
 struct KeyDoc {
   std::string_view table;
   std::string_view key;

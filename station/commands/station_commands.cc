@@ -93,8 +93,8 @@ class StationCommandsImpl final : public StationCommands {
 
  private:
   int RunCheckConfig(std::ostream& out, std::ostream& err) {
-    if (reference_ == check_file_.empty()) {
-      err << "revolve check-config: give a config FILE, or --reference\n";
+    if (reference_ != check_file_.empty()) {
+      err << "revolve check-config: give either a config FILE or --reference\n";
       return kExitUsage;
     }
     if (!reference_) return RunCheckConfigCommand(check_file_, out, err);

@@ -85,7 +85,7 @@ TEST(Reference, MarkdownHasATablePerSectionWithRangesAndDescriptions) {
                          {"scan", "key_bgr", "B G R", "colour"},
                          {"scan", "threshold", "", "level", "", "", "0 to 255"}};
   const std::string md = MarkdownReference(reference, "# Title\n", tables, keys);
-  EXPECT_THAT(md, HasSubstr("Tables: [`[scan]`](#scan)\n\n## `[scan]`\n\nOne scan.\n\n"));
+  EXPECT_THAT(md, HasSubstr("Tables: [`[scan]`](#scan)\n\n## `[scan]`\n\nOne scan.\n\n| key |"));
   EXPECT_THAT(md,
               HasSubstr("| `speed_deg_per_s` | number (deg/s) | `30` | (0, 3600] | plate speed |"));
   EXPECT_THAT(
@@ -94,7 +94,7 @@ TEST(Reference, MarkdownHasATablePerSectionWithRangesAndDescriptions) {
   EXPECT_THAT(
       md,
       HasSubstr("| `key_bgr` | numbers (B G R) | `[]` | each in [0, 255]; 3 or none | colour |"));
-  EXPECT_THAT(md, HasSubstr("| `threshold` | integer | `unset` | 0 to 255 | level |"));
+  EXPECT_THAT(md, HasSubstr("| `threshold` | integer | unset | 0 to 255 | level |"));
   EXPECT_TRUE(ReferenceGaps(reference, tables, keys).empty());
 }
 

@@ -62,7 +62,7 @@ TEST(ConfigReference, ListsEveryTableWithItsKeys) {
   // Keys read on one branch only are there too: Modbus TCP, GPIO lines, recipes.
   EXPECT_THAT(*markdown, testing::HasSubstr("| `unit_id` | integer | `1` | [0, 255] |"));
   EXPECT_THAT(*markdown, testing::HasSubstr("| `host` |"));
-  EXPECT_THAT(*markdown, testing::HasSubstr("| `stops` | integer (count) | `unset` | [1, 3600] |"));
+  EXPECT_THAT(*markdown, testing::HasSubstr("| `stops` | integer (count) | unset | [1, 3600] |"));
 }
 
 }  // namespace
