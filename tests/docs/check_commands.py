@@ -13,7 +13,14 @@ import subprocess
 import sys
 
 
-def help_text(program, args):
+def help_text(program, args, cache={}):
+    key = (program, *args)
+    if key not in cache:
+        cache[key] = run_help(program, args)
+    return cache[key]
+
+
+def run_help(program, args):
     run = subprocess.run([program, *args, '--help'], capture_output=True, text=True, timeout=60)
     if run.returncode != 0:
         return None
