@@ -165,7 +165,7 @@ Expected<std::string> Section::String(std::string_view key, std::string fallback
 }
 
 Expected<std::filesystem::path> Section::Path(std::string_view key,
-                                              std::filesystem::path fallback) const {
+                                              const std::filesystem::path& fallback) const {
   Note(key, "path", fmt::format("\"{}\"", fallback.string()));
   Expected<std::string> value = String(key, fallback.string());
   if (!value) return std::unexpected(value.error());

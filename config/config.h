@@ -70,7 +70,7 @@ class Section {
   // folder, so a config and the files it names move together; the embedded default's paths
   // stay as given. Empty stays empty.
   Expected<std::filesystem::path> Path(std::string_view key,
-                                       std::filesystem::path fallback = {}) const;
+                                       const std::filesystem::path& fallback = {}) const;
   // An array of numbers; `count` 0 means any length.
   Expected<std::vector<double>> Numbers(std::string_view key, std::vector<double> fallback,
                                         std::size_t count = 0) const;
