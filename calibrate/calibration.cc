@@ -129,7 +129,7 @@ Expected<void> Calibration::CheckFrameSize(int width_px, int height_px) const {
 
 std::string FormatCalibration(const Calibration& c) {
   std::string out;
-  out += "# revolve calibration (README.md, \"Calibration\"). Lengths in mm, angles in degrees;\n";
+  out += "# revolve calibration (docs/calibration.md). Lengths in mm, angles in degrees;\n";
   out += "# pixel (0, 0) is the centre of the top-left pixel. Made by `revolve calibrate`.\n";
   out += fmt::format("format_version = {}\n", c.format_version);
   out += fmt::format("software_version = \"{}\"\n", c.software_version);

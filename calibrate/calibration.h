@@ -1,7 +1,7 @@
 // The calibration file: a versioned TOML document holding the lens (intrinsics, distortion), the
 // turntable axis (cam_from_table), the board used, when and by which revolve it was made, and the
 // residuals that say how good it is. Scans reference it from their config ([calibration] file)
-// and keep a copy in their folder. Format: README.md, "The calibration file".
+// and keep a copy in their folder. Format: docs/calibration.md, "The calibration file".
 #pragma once
 
 #include <filesystem>

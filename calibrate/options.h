@@ -38,4 +38,8 @@ struct CalibrationOptions {
 // board, unknown keys.
 Expected<CalibrationOptions> ParseCalibrationOptions(const config::Section& section);
 
+// The descriptions of the keys of [calibration] and its tables, for the configuration reference
+// (config/reference.h).
+config::OptionDocs ReferenceDocs();
+
 }  // namespace revolve::calibrate

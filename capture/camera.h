@@ -216,6 +216,10 @@ Expected<void> WriteTruthMeshPly(const SceneTruth& truth, const std::filesystem:
 // Parses [camera] and its backend's sub-table; unknown keys are errors.
 Expected<CameraOptions> ParseOptions(const config::Section& section);
 
+// The descriptions of the keys of [camera] and its backends' tables, [segment] and [quality], for
+// the configuration reference (config/reference.h).
+config::OptionDocs ReferenceDocs();
+
 // Creates the configured camera. `plate` is the simulated rig's plate (read by the synthetic
 // camera; may be null for real backends).
 Expected<std::unique_ptr<Camera>> Create(const CameraOptions& options,

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 namespace revolve::config {
 namespace {
@@ -92,8 +93,28 @@ Error Section::BadValue(std::string_view key, std::string_view what) const {
   return Error{ErrorCode::kBadInput, fmt::format("{}: {}: {}", Where(node), Dotted(key), what)};
 }
 
+void Section::Note(std::string_view key, std::string_view type, std::string fallback,
+                   std::optional<double> min, std::optional<double> max,
+                   std::initializer_list<std::string_view> allowed) const {
+  if (document_->reference == nullptr) return;
+  KeyRecord record;
+  record.table = path_;
+  record.key = key;
+  record.type = type;
+  record.fallback = std::move(fallback);
+  record.min = min;
+  record.max = max;
+  record.allowed.assign(allowed.begin(), allowed.end());
+  document_->reference->Note(std::move(record));
+}
+
+KeyRecord* Section::Recorded(std::string_view key) const {
+  return document_->reference == nullptr ? nullptr : document_->reference->Find(path_, key);
+}
+
 Expected<double> Section::Number(std::string_view key, double fallback, double min,
                                  double max) const {
+  Note(key, "number", FormatReferenceNumber(fallback), min, max);
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   if (!node->is_number()) return std::unexpected(BadValue(key, "expected a number"));
@@ -107,6 +128,8 @@ Expected<double> Section::Number(std::string_view key, double fallback, double m
 
 Expected<std::int64_t> Section::Integer(std::string_view key, std::int64_t fallback,
                                         std::int64_t min, std::int64_t max) const {
+  Note(key, "integer", std::to_string(fallback), static_cast<double>(min),
+       static_cast<double>(max));
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   if (!node->is_integer()) return std::unexpected(BadValue(key, "expected an integer"));
@@ -119,6 +142,7 @@ Expected<std::int64_t> Section::Integer(std::string_view key, std::int64_t fallb
 }
 
 Expected<bool> Section::Boolean(std::string_view key, bool fallback) const {
+  Note(key, "boolean", fallback ? "true" : "false");
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   if (!node->is_boolean()) return std::unexpected(BadValue(key, "expected true or false"));
@@ -127,6 +151,7 @@ Expected<bool> Section::Boolean(std::string_view key, bool fallback) const {
 
 Expected<std::string> Section::String(std::string_view key, std::string fallback,
                                       std::initializer_list<std::string_view> allowed) const {
+  Note(key, "string", fmt::format("\"{}\"", fallback), {}, {}, allowed);
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   if (!node->is_string()) return std::unexpected(BadValue(key, "expected a string"));
@@ -140,7 +165,8 @@ Expected<std::string> Section::String(std::string_view key, std::string fallback
 }
 
 Expected<std::filesystem::path> Section::Path(std::string_view key,
-                                              std::filesystem::path fallback) const {
+                                              const std::filesystem::path& fallback) const {
+  Note(key, "path", fmt::format("\"{}\"", fallback.string()));
   Expected<std::string> value = String(key, fallback.string());
   if (!value) return std::unexpected(value.error());
   std::filesystem::path path(*value);
@@ -151,6 +177,10 @@ Expected<std::filesystem::path> Section::Path(std::string_view key,
 
 Expected<std::vector<double>> Section::Numbers(std::string_view key, std::vector<double> fallback,
                                                std::size_t count) const {
+  Note(key, "numbers", fallback.empty() ? "[]" : fmt::format("[{}]", fmt::join(fallback, ", ")));
+  if (KeyRecord* r = Recorded(key); r != nullptr && count != 0) {
+    r->count = fmt::format("exactly {}", count);
+  }
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   const toml::array* array = node->as_array();
@@ -171,6 +201,8 @@ Expected<std::vector<double>> Section::Numbers(std::string_view key, std::vector
 
 Expected<std::vector<std::string>> Section::Strings(std::string_view key,
                                                     std::vector<std::string> fallback) const {
+  Note(key, "strings",
+       fallback.empty() ? "[]" : fmt::format("[\"{}\"]", fmt::join(fallback, "\", \"")));
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
   const toml::array* array = node->as_array();
@@ -209,10 +241,9 @@ Expected<void> Section::CheckNoUnknownKeys() const {
     where = fmt::format("{}:{}:{}", document_->origin, first->source().begin.line,
                         first->source().begin.column);
   }
-  return MakeError(ErrorCode::kBadInput,
-                   fmt::format("{}: unknown key \"{}\" (check the spelling; README lists "
-                               "every key)",
-                               where, Dotted(first->str())));
+  return MakeError(ErrorCode::kBadInput, fmt::format("{}: unknown key \"{}\" (check the spelling; "
+                                                     "docs/configuration.md lists every key)",
+                                                     where, Dotted(first->str())));
 }
 
 }  // namespace revolve::config

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <initializer_list>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -16,6 +17,7 @@
 #include <toml++/toml.h>
 
 #include "base/error.h"
+#include "config/reference.h"
 
 namespace revolve::config {
 
@@ -24,6 +26,9 @@ struct Document {
   std::string origin;
   std::string text;
   toml::table root;
+  // When set, every getter of the document's Sections records the key it reads (for the
+  // configuration reference; see config/reference.h). Not owned.
+  Reference* reference = nullptr;
 };
 
 // Reads and parses a file. Errors: not_found (names the file), bad_input with
@@ -65,7 +70,7 @@ class Section {
   // folder, so a config and the files it names move together; the embedded default's paths
   // stay as given. Empty stays empty.
   Expected<std::filesystem::path> Path(std::string_view key,
-                                       std::filesystem::path fallback = {}) const;
+                                       const std::filesystem::path& fallback = {}) const;
   // An array of numbers; `count` 0 means any length.
   Expected<std::vector<double>> Numbers(std::string_view key, std::vector<double> fallback,
                                         std::size_t count = 0) const;
@@ -84,10 +89,18 @@ class Section {
   // table's, when the key is absent).
   Error BadValue(std::string_view key, std::string_view what) const;
 
+  // The record of the key `key` read last, while the document records a reference (else
+  // nullptr): for a caller that checks more than the getter did (a bound excluded, say).
+  KeyRecord* Recorded(std::string_view key) const;
+
  private:
   const toml::node* Find(std::string_view key) const;
   std::string Where(const toml::node* node) const;
   std::string Dotted(std::string_view key) const;
+  // Records `key` when the document records a reference.
+  void Note(std::string_view key, std::string_view type, std::string fallback,
+            std::optional<double> min = {}, std::optional<double> max = {},
+            std::initializer_list<std::string_view> allowed = {}) const;
 
   const Document* document_;
   std::string path_;

@@ -16,6 +16,7 @@ void Reader::Number(std::string_view key, double& out, double min, double max) {
 void Reader::NumberAbove(std::string_view key, double& out, double min, double max) {
   if (error_) return;
   Expected<double> v = section_.Number(key, out, min, max);
+  if (KeyRecord* record = section_.Recorded(key)) record->above_min = true;
   if (!v) {
     error_ = v.error();
   } else if (*v <= min) {
@@ -58,6 +59,12 @@ void Reader::Numbers(std::string_view key, std::vector<double>& out, double min,
                      std::size_t group, std::size_t exact) {
   if (error_) return;
   Expected<std::vector<double>> value = section_.Numbers(key, out);
+  if (KeyRecord* record = section_.Recorded(key)) {
+    record->min = min;
+    record->max = max;
+    if (exact > 0) record->count = fmt::format("{} or none", exact);
+    if (group > 0) record->count = fmt::format("groups of {}", group);
+  }
   if (!value) {
     error_ = value.error();
     return;

@@ -52,6 +52,7 @@ class Reader {
     if (error_ || !section_.Has(key)) return;
     T value{};
     get(key, value);
+    if (KeyRecord* record = section_.Recorded(key)) record->optional = true;
     if (!error_) out = std::move(value);
   }
 

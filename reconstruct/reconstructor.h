@@ -48,6 +48,10 @@ struct ReconstructOptions {
 // file:line:column and the key, for a wrong type, a value out of range or an unknown key.
 Expected<ReconstructOptions> ParseOptions(const config::Section& section);
 
+// The descriptions of the keys of [reconstruct], for the configuration reference
+// (config/reference.h).
+config::OptionDocs ReferenceDocs();
+
 class Reconstructor {
  public:
   virtual ~Reconstructor() = default;

@@ -1,4 +1,4 @@
-// A scan folder (layout in README "Scan folder"): every file is written to a temporary name,
+// A scan folder (layout in docs/reconstruction.md, "The scan folder"): every file is written to a temporary name,
 // fsynced and renamed, so the folder never holds a half-written file.
 #pragma once
 

@@ -2,7 +2,7 @@
 // for the model's units. Shared by ScanSession (a scan) and `revolve reconstruct SCAN_DIR`.
 //
 // One of three, in this order of preference:
-//  - calibration: a calibration file (README.md, "Calibration"), [calibration] file or a scan's
+//  - calibration: a calibration file (docs/calibration.md), [calibration] file or a scan's
 //    calibration.toml. Frames are undistorted (Undistort) before segmentation and saving; the
 //    view at plate angle a is Rig::PixelFromObject(a) of Calibration::ToRig(); millimetres.
 //  - camera: the camera's own geometry (Camera::KnownView: the simulated camera); millimetres.

@@ -1,6 +1,6 @@
 // The whole station's configuration: [scan], [station], [daemon], [operator], [recipes.*] plus
-// each module's own section ([calibration]: README.md, "Calibration"). Every key, unit, default and
-// range: README.md, "Configuration reference".
+// each module's own section ([calibration]: docs/calibration.md). Every key, type, default and
+// range: docs/configuration.md.
 #pragma once
 
 #include <cstdint>
@@ -126,13 +126,17 @@ struct StationConfig {
   capture::QualityOptions quality;  // [quality]: the per-stop gates (capture/quality.h)
   reconstruct::ReconstructOptions reconstruct;
   // [calibration]: the calibration scans use (`file`, resolved against the config file's folder;
-  // empty: none), the board and the gates of `revolve calibrate` (README.md, "Calibration").
+  // empty: none), the board and the gates of `revolve calibrate` (docs/calibration.md).
   calibrate::CalibrationOptions calibration;
 };
 
 // Parses a whole document: every section, unknown tables and keys are errors naming
 // file:line:column.
 Expected<StationConfig> ParseStationConfig(const config::Document& document);
+
+// The descriptions of the keys of [scan], [station], [station.simulate], [daemon], [operator]
+// and [recipes.NAME], for the configuration reference (config/reference.h).
+config::OptionDocs ReferenceDocs();
 
 // Loads `path`, or the embedded default (the simulated rig) when `path` is empty.
 Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::path>& path);

@@ -19,6 +19,7 @@ namespace {
 Expected<double> PositiveNumber(const config::Section& section, std::string_view key,
                                 double fallback, double max) {
   Expected<double> value = section.Number(key, fallback, 0.0, max);
+  if (config::KeyRecord* record = section.Recorded(key)) record->above_min = true;
   if (value && *value <= 0.0) {
     return std::unexpected(
         section.BadValue(key, fmt::format("must be greater than 0 (and at most {})", max)));

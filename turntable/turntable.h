@@ -88,7 +88,7 @@ struct MockFault {
   std::string alarm_text = "overcurrent: check the motor wiring and the load";
 };
 
-// The mock drive's motion parameters (see [turntable.mock] in README).
+// The mock drive's motion parameters (see [turntable.mock] in docs/configuration.md).
 //
 // Time: the mock simulates a drive on the steady clock slowed or sped up by `time_scale`:
 //   real_seconds = simulated_seconds * time_scale.
@@ -122,6 +122,10 @@ struct TurntableOptions {
 // unknown backend; not_found/bad_input for the profile. Options are parsed even when this build
 // lacks a backend (Create() reports that).
 Expected<TurntableOptions> ParseOptions(const config::Section& section);
+
+// The descriptions of the keys of [turntable] and its backends' tables, for the configuration
+// reference (config/reference.h).
+config::OptionDocs ReferenceDocs();
 
 // Creates the configured turntable and opens its device (the serial port or TCP connection,
 // the GPIO lines). `plate` is the simulated rig's plate: the mock writes its angle; the modbus

@@ -1,4 +1,4 @@
-// `revolve calibrate`: I/O shell around calibrate/ (README.md, "Calibration"). It reads images or
+// `revolve calibrate`: I/O shell around calibrate/ (docs/calibration.md). It reads images or
 // drives the configured rig (station/devices.h), calls the pure calibration library, prints the
 // figures and writes the calibration file.
 //

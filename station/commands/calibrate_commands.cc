@@ -12,7 +12,7 @@ class CalibrateCommandsImpl final : public CalibrateCommands {
   explicit CalibrateCommandsImpl(CLI::App& app) {
     calibrate_ = app.add_subcommand(
         "calibrate",
-        "Calibrate the lens, then the turntable axis (README: Calibration); verbs run one step");
+        "Calibrate the lens, then the turntable axis (docs/calibration.md); verbs run one step");
     calibrate_->require_subcommand(0, 1);
     AddConfig(calibrate_);
     AddImages(calibrate_);

@@ -1,5 +1,5 @@
 // `revolve calibrate [lens | axis | check | board]`: lens and turntable-axis calibration, the
-// drift check and the printable board (station/calibrate_command.h, README.md, "Calibration").
+// drift check and the printable board (station/calibrate_command.h, docs/calibration.md).
 #pragma once
 
 #include <iosfwd>

@@ -338,7 +338,7 @@ int RunCheckConfigCommand(const std::filesystem::path& file, std::ostream& out, 
              "# The effective configuration: every key of [scan], [station], [daemon] and "
              "[operator]\n"
              "# with its value (defaults filled in); the other sections as given (their "
-             "defaults: README).\n"
+             "defaults: docs/configuration.md).\n"
              "# Recipes (\"default\" is the base configuration):\n{}\n{}\n",
              file.string(), recipes, toml_text.str());
   return kExitOk;

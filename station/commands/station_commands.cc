@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include "station/commands/config_reference.h"
 #include "station/commands/control_commands.h"
 #include "station/commands/reconstruct_command.h"
 #include "station/commands/reconstruct_images_command.h"
@@ -70,7 +71,10 @@ class StationCommandsImpl final : public StationCommands {
                            "With --images, meridian: both sides of the axis (T/2 images)");
 
     check_ = app.add_subcommand("check-config", "Validate a config and print the effective one");
-    check_->add_option("FILE", check_file_, "The config file")->required();
+    check_->add_option("FILE", check_file_, "The config file");
+    check_->add_flag("--reference", reference_,
+                     "Print the reference of every table and key as Markdown "
+                     "(docs/configuration.md) instead");
   }
 
   std::optional<int> Run(std::stop_token stop, std::ostream& out, std::ostream& err) override {
@@ -83,11 +87,26 @@ class StationCommandsImpl final : public StationCommands {
     if (watch_cmd_->parsed()) return RunWatchCommand(client_, follow_, stop, out, err);
     if (list_->parsed()) return RunListCommand(client_, out, err);
     if (reconstruct_->parsed()) return RunReconstruct(stop, out, err);
-    if (check_->parsed()) return RunCheckConfigCommand(check_file_, out, err);
+    if (check_->parsed()) return RunCheckConfig(out, err);
     return std::nullopt;
   }
 
  private:
+  int RunCheckConfig(std::ostream& out, std::ostream& err) {
+    if (reference_ != check_file_.empty()) {
+      err << "revolve check-config: give either a config FILE or --reference\n";
+      return kExitUsage;
+    }
+    if (!reference_) return RunCheckConfigCommand(check_file_, out, err);
+    Expected<std::string> markdown = ConfigReferenceMarkdown();
+    if (!markdown) {
+      err << "revolve check-config --reference: " << markdown.error().message << "\n";
+      return kExitFailed;
+    }
+    out << *markdown;
+    return 0;
+  }
+
   int RunReconstruct(std::stop_token stop, std::ostream& out, std::ostream& err) {
     if (!images_.images.empty()) {
       if (!recon_.scan_dir.empty()) {
@@ -137,6 +156,7 @@ class StationCommandsImpl final : public StationCommands {
   std::vector<double> bbox_;
   std::vector<std::string> formats_;
   std::filesystem::path check_file_;
+  bool reference_ = false;
   CLI::App* start_ = nullptr;
   CLI::App* abort_ = nullptr;
   CLI::App* status_ = nullptr;

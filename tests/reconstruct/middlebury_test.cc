@@ -3,7 +3,7 @@
 // themselves, the carving volume found from the silhouettes (no bounding box given), a visual
 // hull carved and its silhouettes reprojected into every view.
 //
-// Segmentation per set (black background; measured, see README.md, "Reconstruction"): any channel
+// Segmentation per set (black background; measured, see docs/reconstruction.md): any channel
 // above a threshold, closing radius 3, opening radius 1, components under 5% of the largest
 // dropped, holes filled (up to a size for the temple). Figures at resolution 160 (this test):
 // dino 0.979 mean / 0.947 min, temple 0.978 / 0.965.

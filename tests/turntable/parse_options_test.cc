@@ -152,7 +152,8 @@ TEST(TurntableParseOptions, ModbusErrorsNameFileLineAndKey) {
              "test.toml:4:11: turntable.modbus.profile: no drive "
              "profile \"no_such_drive\""},
         Case{"profile = \"generic\"\n[turntable.modbus.params]\nacc = 1\n",
-             "unknown key \"turntable.modbus.params.acc\" (check the spelling; README lists every "
+             "unknown key \"turntable.modbus.params.acc\" (check the spelling; "
+             "docs/configuration.md lists every "
              "key) (profile generic has params: none)"},
         Case{"unit = 1\n", "test.toml:4:1: unknown key \"turntable.modbus.unit\""},
         Case{"gear_ratio = 0\n", "turntable.modbus.gear_ratio: must be greater than 0"}}) {

@@ -2,7 +2,7 @@
 // turntable/modbus/profiles/, or any file a user points at). Pure: parsing, rendering commands
 // to requests, decoding fields; no I/O beyond reading the profile file.
 //
-// File format (README.md, "Modbus drive profiles", walks through it):
+// File format (docs/operator-guide.md, "Modbus drive profiles", walks through it):
 //
 //   [profile]
 //   description = "..."          # one line for logs
