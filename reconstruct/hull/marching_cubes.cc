@@ -300,18 +300,13 @@ int KeepLargestComponent(Mesh* mesh) {
   return components;
 }
 
-Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double spacing,
-                   const EdgeCrossings& crossings, const MarchingCubesOptions& options) {
-  const CaseTable& table = Table();
-  Mesh mesh;
-  const Eigen::Vector3i& dims = field.dims();
-  if (dims.minCoeff() <= 0 || !field.Any()) {
-    return mesh;
-  }
+namespace {
 
-  // A copy padded by one empty sample on every side: padded sample p is field sample p - 1.
-  const Eigen::Vector3i n = dims + Eigen::Vector3i::Constant(2);
-  BitVolume padded(n);
+// A copy of `field` padded by one empty sample on every side: padded sample p is field sample
+// p - 1.
+BitVolume Padded(const BitVolume& field) {
+  const Eigen::Vector3i& dims = field.dims();
+  BitVolume padded(dims + Eigen::Vector3i::Constant(2));
   const int src_words = field.words_per_row();
   for (int k = 0; k < dims.z(); ++k) {
     for (int j = 0; j < dims.y(); ++j) {
@@ -327,6 +322,45 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
       }
     }
   }
+  return padded;
+}
+
+// mesh->vertices: one per cut edge, at origin + spacing * (inside + t (outside - inside)) with
+// t from `crossings` (clamped to [0, 1]; the midpoint without them, or when they do not give
+// one per edge).
+void PlaceVertices(const std::vector<GridEdge>& cut_edges, const Eigen::Vector3d& origin,
+                   double spacing, const EdgeCrossings& crossings, Mesh* mesh) {
+  std::vector<double> t;
+  if (crossings) {
+    t = crossings(cut_edges);
+  }
+  if (t.size() != cut_edges.size()) {
+    t.assign(cut_edges.size(), 0.5);
+  }
+  mesh->vertices.reserve(cut_edges.size());
+  for (std::size_t v = 0; v < cut_edges.size(); ++v) {
+    const GridEdge& edge = cut_edges[v];
+    const double tv = std::clamp(t[v], 0.0, 1.0);
+    const Eigen::Vector3d position =
+        origin +
+        spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
+    mesh->vertices.push_back(position.cast<float>());
+  }
+}
+
+}  // namespace
+
+Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double spacing,
+                   const EdgeCrossings& crossings, const MarchingCubesOptions& options) {
+  const CaseTable& table = Table();
+  Mesh mesh;
+  const Eigen::Vector3i& dims = field.dims();
+  if (dims.minCoeff() <= 0 || !field.Any()) {
+    return mesh;
+  }
+
+  const BitVolume padded = Padded(field);
+  const Eigen::Vector3i& n = padded.dims();
 
   // Vertex ids of the edges around the current layer of cells: x and y edges on the planes
   // z = pz (parity pz & 1) and z = pz + 1, z edges between them. -1 = not made yet.
@@ -448,22 +482,7 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
       }
     }
   }
-  std::vector<double> t;
-  if (crossings) {
-    t = crossings(cut_edges);
-  }
-  if (t.size() != cut_edges.size()) {
-    t.assign(cut_edges.size(), 0.5);
-  }
-  mesh.vertices.reserve(cut_edges.size());
-  for (std::size_t v = 0; v < cut_edges.size(); ++v) {
-    const GridEdge& edge = cut_edges[v];
-    const double tv = std::clamp(t[v], 0.0, 1.0);
-    const Eigen::Vector3d position =
-        origin +
-        spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
-    mesh.vertices.push_back(position.cast<float>());
-  }
+  PlaceVertices(cut_edges, origin, spacing, crossings, &mesh);
   if (options.keep_largest_component) {
     KeepLargestComponent(&mesh);
   }

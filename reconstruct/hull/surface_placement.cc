@@ -286,84 +286,67 @@ void NearestPixels(const double* __restrict hx, const double* __restrict hy,
 
 }  // namespace
 
-std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
-                                             std::optional<double> clip_below_z_mm,
-                                             bool cull_views) const {
-  const std::size_t n = edges.size();
-  const int views = view_count();
-  // Each edge with the part of it that can hold the crossing (all of it, or up to the grid's
-  // face for an edge leaving the grid, or up to the clip plane), grouped by its inside sample,
-  // the samples sorted by block of 16 voxels, brick, then voxel. Per view, a block the view
-  // cannot act on (its box grown by one voxel contains every segment of its edges) is skipped;
-  // in the others, a sample whose neighbourhood (as far as its segments can move in the image)
-  // is all on the silhouette skips its edges, then an edge whose end pixels' rectangle is all
-  // on the silhouette; the rest are walked.
+// The edges of one PlaceOnEdges laid out for its per-view passes, and those passes. Each edge
+// with the part of it that can hold the crossing (all of it, or up to the grid's face for an
+// edge leaving the grid, or up to the clip plane), grouped by its inside sample, the samples
+// sorted by block of 16 voxels, brick, then voxel. Per view, a block the view cannot act on (its
+// box grown by one voxel contains every segment of its edges) is skipped; in the others, a
+// sample whose neighbourhood (as far as its segments can move in the image) is all on the
+// silhouette skips its edges, then an edge whose end pixels' rectangle is all on the
+// silhouette; the rest are walked.
+class VisualHull::EdgePlacer {
+ public:
+  EdgePlacer(const VisualHull& hull, const std::vector<GridEdge>& edges,
+             std::optional<double> clip_below_z_mm)
+      : hull_(hull),
+        n_(edges.size()),
+        block_dims_((hull.brick_dims_ + Eigen::Vector3i::Constant(3)) / 4) {
+    SortByBlock(edges);
+    LayOut(clip_below_z_mm);
+    AllocateScratch();
+  }
+
+  // Each edge's crossing moved to where `view` cuts it first, when that is sooner.
+  void PlaceInView(const ViewData& view, bool cull_views) {
+    const PackedMask packed(view.roi, view.packed_words, view.packed.data());
+    // P * d for the six steps (axis, sign), as FirstExit computes it.
+    const Matrix34d& p = view.pixel_from_object;
+    double step_h[3][2][3];
+    for (int axis = 0; axis < 3; ++axis) {
+      for (int s = 0; s < 2; ++s) {
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        d[axis] = (s == 0 ? -1 : 1) * hull_.grid_.voxel_mm;
+        for (int r = 0; r < 3; ++r) {
+          step_h[axis][s][r] = p(r, 0) * d.x() + p(r, 1) * d.y() + p(r, 2) * d.z();
+        }
+      }
+    }
+    for (const Block& block : blocks_) {
+      Reach reach;
+      if (cull_views && !ReachOfBlock(view, packed, block, &reach)) continue;
+      const std::size_t count = GatherSamples(view, packed, block, reach, cull_views);
+      const std::size_t walks = SamplesToWalk(view, packed, reach, count);
+      const std::size_t m = ItemsToWalk(view, packed, step_h, walks);
+      WalkItems(view, step_h, m);
+    }
+  }
+
+  // Per edge (in the order of `edges`): the t of its crossing. No view cuts the segment: its end
+  // (the grid's face, the plane, or rounding for an edge inside the grid, whose outside sample
+  // some view carved).
+  std::vector<double> Result() const {
+    std::vector<double> t(n_);
+    for (std::size_t k = 0; k < n_; ++k) t[items_[k].edge] = std::min(t_item_[k], items_[k].t_max);
+    return t;
+  }
+
+ private:
   struct Item {
     double t_max;
     std::uint32_t edge;
     std::int8_t axis;
     std::int8_t sign;
   };
-  const Eigen::Vector3i block_dims = (brick_dims_ + Eigen::Vector3i::Constant(3)) / 4;
-  auto block_of = [&](const Eigen::Vector3i& voxel) {
-    const Eigen::Vector3i block = voxel / (4 * kBrick);
-    return static_cast<std::uint32_t>(
-        (std::int64_t{block.z()} * block_dims.y() + block.y()) * block_dims.x() + block.x());
-  };
-  // A voxel's place in its block: brick within the block (bits 6-11), voxel within the brick.
-  auto local_key = [](const Eigen::Vector3i& voxel) {
-    const Eigen::Vector3i brick = voxel / kBrick;
-    const Eigen::Vector3i local = brick - 4 * (brick / 4);
-    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
-    return static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
-           static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
-  };
-  // The edges as (what the placement needs of the edge << 44 | local key << 32 | edge index),
-  // grouped by block (a counting sort), then sorted by local key within each block (a few
-  // hundred edges). What it needs: the axis (bits 0-1), whether the step is positive (bit 2)
-  // and whether the edge leaves the grid (bit 3).
-  std::vector<std::size_t> start(static_cast<std::size_t>(block_dims.prod()) + 1, 0);
-  for (const GridEdge& edge : edges) ++start[block_of(edge.inside.cwiseMax(0)) + 1];
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  const auto order = std::make_unique_for_overwrite<std::uint64_t[]>(n);
-  {
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t e = 0; e < n; ++e) {
-      const GridEdge& edge = edges[e];
-      const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
-      const Eigen::Vector3i step = edge.outside - edge.inside;
-      const int axis = step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2);
-      const bool leaves =
-          ((edge.outside.array() < 0) || (edge.outside.array() >= grid_.dims.array())).any();
-      const std::uint64_t need = static_cast<std::uint64_t>(axis) |
-                                 static_cast<std::uint64_t>(step[axis] > 0) << 2 |
-                                 static_cast<std::uint64_t>(leaves) << 3;
-      order[fill[block_of(voxel)]++] = (need << 12 | local_key(voxel)) << 32 | e;
-    }
-  }
-  {
-    // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
-    // sample stay in the order of their indices).
-    std::size_t most = 0;
-    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-      most = std::max(most, start[b + 1] - start[b]);
-    }
-    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
-    for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-      const std::size_t count = start[b + 1] - start[b];
-      if (count < 2) continue;
-      std::uint64_t* from = &order[start[b]];
-      std::uint64_t* to = scratch.get();
-      for (const int shift : {32, 38}) {
-        std::array<std::uint32_t, 65> at{};
-        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
-        std::partial_sum(at.begin(), at.end(), at.begin());
-        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
-        std::swap(from, to);
-      }
-    }
-  }
-
   struct Sample {  // an inside sample and its edges, items[first, first + count)
     std::uint8_t count;
     std::uint8_t axes;  // bit a: an edge along axis a
@@ -382,54 +365,138 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       z.push_back(c.z());
     }
   };
-  std::vector<Item> items;  // in the order of `order`
-  std::vector<Sample> samples;
-  Points sample_centre;
-  std::vector<std::size_t> brick_start;  // samples of brick b: [brick_start[b], brick_start[b + 1])
-  Points brick_centre;
-  // Per brick: the box of its samples' segments (grid coordinates, voxels).
-  std::vector<Eigen::Vector3d> brick_lo, brick_hi;
-  std::vector<Block> blocks;
-  // At most one sample, brick and block per edge: room for them, so that the arrays are not
-  // moved as they grow (only the pages written are given memory).
-  const std::size_t brick_bound = std::min(n, static_cast<std::size_t>(brick_dims_.prod()));
-  items.reserve(n);
-  samples.reserve(n);
-  brick_start.reserve(brick_bound + 1);
-  brick_lo.reserve(brick_bound);
-  brick_hi.reserve(brick_bound);
-  blocks.reserve(std::min(n, static_cast<std::size_t>(block_dims.prod())));
-  for (auto [points, size] :
-       {std::pair{&sample_centre, n}, std::pair{&brick_centre, brick_bound}}) {
-    points->x.reserve(size);
-    points->y.reserve(size);
-    points->z.reserve(size);
+  // How far the segments of a block can move in a view's image (px): per set of axes (bit a:
+  // axis a) for a sample's segments of one voxel, and per voxel along each axis for a brick's.
+  // Infinite (NaN when multiplied by 0) where part of the block is behind the camera, or without
+  // culling: then nothing is left out.
+  struct Reach {
+    double u[8], v[8];
+    StepBound bound{};
+    Reach() {
+      std::fill(std::begin(u), std::end(u), std::numeric_limits<double>::infinity());
+      std::fill(std::begin(v), std::end(v), std::numeric_limits<double>::infinity());
+    }
+  };
+
+  std::uint32_t BlockOf(const Eigen::Vector3i& voxel) const {
+    const Eigen::Vector3i block = voxel / (4 * kBrick);
+    return static_cast<std::uint32_t>(
+        (std::int64_t{block.z()} * block_dims_.y() + block.y()) * block_dims_.x() + block.x());
   }
-  for (std::size_t b = 0; b + 1 < start.size(); ++b) {
-    const std::size_t end = start[b + 1];
-    if (start[b] == end) continue;
-    Block& block = blocks.emplace_back();
-    block.begin = brick_start.size();
+  // A voxel's place in its block: brick within the block (bits 6-11), voxel within the brick.
+  static std::uint64_t LocalKey(const Eigen::Vector3i& voxel) {
+    const Eigen::Vector3i brick = voxel / kBrick;
+    const Eigen::Vector3i local = brick - 4 * (brick / 4);
+    const Eigen::Vector3i in_brick = voxel - kBrick * brick;
+    return static_cast<std::uint64_t>(local.x() | local.y() << 2 | local.z() << 4) << 6 |
+           static_cast<std::uint64_t>(in_brick.x() | in_brick.y() << 2 | in_brick.z() << 4);
+  }
+
+  // order_: the edges as (what the placement needs of the edge << 44 | local key << 32 | edge
+  // index), grouped by block (a counting sort; block b's are [start_[b], start_[b + 1])), then
+  // sorted by local key within each block (a few hundred edges). What it needs: the axis (bits
+  // 0-1), whether the step is positive (bit 2) and whether the edge leaves the grid (bit 3).
+  void SortByBlock(const std::vector<GridEdge>& edges) {
+    start_.assign(static_cast<std::size_t>(block_dims_.prod()) + 1, 0);
+    for (const GridEdge& edge : edges) ++start_[BlockOf(edge.inside.cwiseMax(0)) + 1];
+    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    order_ = std::make_unique_for_overwrite<std::uint64_t[]>(n_);
+    {
+      std::vector<std::size_t> fill(start_.begin(), start_.end() - 1);
+      for (std::size_t e = 0; e < n_; ++e) {
+        const GridEdge& edge = edges[e];
+        const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
+        const Eigen::Vector3i step = edge.outside - edge.inside;
+        const int axis = step.x() != 0 ? 0 : (step.y() != 0 ? 1 : 2);
+        const bool leaves =
+            ((edge.outside.array() < 0) || (edge.outside.array() >= hull_.grid_.dims.array()))
+                .any();
+        const std::uint64_t need = static_cast<std::uint64_t>(axis) |
+                                   static_cast<std::uint64_t>(step[axis] > 0) << 2 |
+                                   static_cast<std::uint64_t>(leaves) << 3;
+        order_[fill[BlockOf(voxel)]++] = (need << 12 | LocalKey(voxel)) << 32 | e;
+      }
+    }
+    // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
+    // sample stay in the order of their indices).
+    std::size_t most = 0;
+    for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
+      most = std::max(most, start_[b + 1] - start_[b]);
+    }
+    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
+    for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
+      const std::size_t count = start_[b + 1] - start_[b];
+      if (count < 2) continue;
+      std::uint64_t* from = &order_[start_[b]];
+      std::uint64_t* to = scratch.get();
+      for (const int shift : {32, 38}) {
+        std::array<std::uint32_t, 65> at{};
+        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
+        std::partial_sum(at.begin(), at.end(), at.begin());
+        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
+        std::swap(from, to);
+      }
+    }
+  }
+
+  // From order_: items_ (in its order), samples_ and their centres, bricks (their samples, the
+  // middle and half extents of the box of their samples' segments) and blocks_.
+  void LayOut(std::optional<double> clip_below_z_mm) {
+    // At most one sample, brick and block per edge: room for them, so that the arrays are not
+    // moved as they grow (only the pages written are given memory).
+    const std::size_t brick_bound =
+        std::min(n_, static_cast<std::size_t>(hull_.brick_dims_.prod()));
+    items_.reserve(n_);
+    samples_.reserve(n_);
+    brick_start_.reserve(brick_bound + 1);
+    brick_lo_.reserve(brick_bound);
+    brick_hi_.reserve(brick_bound);
+    blocks_.reserve(std::min(n_, static_cast<std::size_t>(block_dims_.prod())));
+    for (auto [points, size] :
+         {std::pair{&sample_centre_, n_}, std::pair{&brick_centre_, brick_bound}}) {
+      points->x.reserve(size);
+      points->y.reserve(size);
+      points->z.reserve(size);
+    }
+    for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
+      if (start_[b] != start_[b + 1]) AddBlock(b, clip_below_z_mm);
+    }
+    brick_start_.push_back(samples_.size());
+    // Each brick's middle (mm) and half extents (voxels).
+    const VoxelGrid& grid = hull_.grid_;
+    brick_half_.resize(brick_lo_.size());
+    for (std::size_t b = 0; b < brick_lo_.size(); ++b) {
+      brick_centre_.Add(grid.Centre(0, 0, 0) + grid.voxel_mm * 0.5 * (brick_lo_[b] + brick_hi_[b]));
+      brick_half_[b] = 0.5 * (brick_hi_[b] - brick_lo_[b]);
+    }
+  }
+
+  // LayOut's part for block b, which holds edges.
+  void AddBlock(std::size_t b, std::optional<double> clip_below_z_mm) {
+    const VoxelGrid& grid = hull_.grid_;
+    const std::size_t end = start_[b + 1];
+    Block& block = blocks_.emplace_back();
+    block.begin = brick_start_.size();
     // The block's first voxel.
     const auto index = static_cast<int>(b);
     const Eigen::Vector3i block_voxel =
         4 * kBrick *
-        Eigen::Vector3i(index % block_dims.x(), index / block_dims.x() % block_dims.y(),
-                        index / (block_dims.x() * block_dims.y()));
+        Eigen::Vector3i(index % block_dims_.x(), index / block_dims_.x() % block_dims_.y(),
+                        index / (block_dims_.x() * block_dims_.y()));
     {
       // The block's voxel centres grown by one voxel.
       const Eigen::Vector3i lo = block_voxel - Eigen::Vector3i::Ones();
       const Eigen::Vector3i hi = lo + Eigen::Vector3i::Constant(4 * kBrick + 1);
-      const Eigen::Vector3d l = grid_.Centre(lo.x(), lo.y(), lo.z());
-      const Eigen::Vector3d h = grid_.Centre(hi.x(), hi.y(), hi.z());
+      const Eigen::Vector3d l = grid.Centre(lo.x(), lo.y(), lo.z());
+      const Eigen::Vector3d h = grid.Centre(hi.x(), hi.y(), hi.z());
       for (int c = 0; c < 8; ++c) {
         block.corners[c] =
             Eigen::Vector3d(c & 1 ? h.x() : l.x(), c & 2 ? h.y() : l.y(), c & 4 ? h.z() : l.z());
       }
     }
     std::uint64_t brick_key = ~std::uint64_t{0};
-    for (std::size_t i = start[b]; i < end;) {
-      const std::uint64_t key = order[i] >> 32 & 0xFFF;
+    for (std::size_t i = start_[b]; i < end;) {
+      const std::uint64_t key = order_[i] >> 32 & 0xFFF;
       const auto local = static_cast<int>(key);
       const Eigen::Vector3i voxel =
           block_voxel + kBrick * Eigen::Vector3i(local >> 6 & 3, local >> 8 & 3, local >> 10 & 3) +
@@ -437,16 +504,16 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       // The sample's edges become items.
       std::size_t j = i;
       std::uint8_t axes = 0;
-      for (; j < end && (order[j] >> 32 & 0xFFF) == key; ++j) {
-        const std::uint64_t need = order[j] >> 44;
-        Item& item = items.emplace_back();
+      for (; j < end && (order_[j] >> 32 & 0xFFF) == key; ++j) {
+        const std::uint64_t need = order_[j] >> 44;
+        Item& item = items_.emplace_back();
         item.axis = static_cast<std::int8_t>(need & 3);
         item.sign = static_cast<std::int8_t>(need & 4 ? 1 : -1);
-        item.edge = static_cast<std::uint32_t>(order[j]);
+        item.edge = static_cast<std::uint32_t>(order_[j]);
         item.t_max = need & 8 ? 0.5 : 1.0;
         if (clip_below_z_mm && item.axis == 2 && item.sign < 0) {
-          const double z = grid_.Centre(0, 0, voxel.z()).z();
-          const double to_plane = (z - *clip_below_z_mm) / grid_.voxel_mm;
+          const double z = grid.Centre(0, 0, voxel.z()).z();
+          const double to_plane = (z - *clip_below_z_mm) / grid.voxel_mm;
           if (to_plane >= 0.0 && to_plane < item.t_max) {
             item.t_max = to_plane;
           }
@@ -455,252 +522,287 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
       }
       if ((key >> 6) != brick_key) {
         brick_key = key >> 6;
-        brick_start.push_back(samples.size());
-        brick_lo.push_back(voxel.cast<double>());
-        brick_hi.push_back(voxel.cast<double>());
-        block.end = brick_start.size();
+        brick_start_.push_back(samples_.size());
+        brick_lo_.push_back(voxel.cast<double>());
+        brick_hi_.push_back(voxel.cast<double>());
+        block.end = brick_start_.size();
       }
       // The segments' ends.
       for (std::size_t k = i; k < j; ++k) {
         Eigen::Vector3d tip = voxel.cast<double>();
-        tip[items[k].axis] += items[k].sign * items[k].t_max;
-        brick_lo.back() = brick_lo.back().cwiseMin(tip);
-        brick_hi.back() = brick_hi.back().cwiseMax(tip);
+        tip[items_[k].axis] += items_[k].sign * items_[k].t_max;
+        brick_lo_.back() = brick_lo_.back().cwiseMin(tip);
+        brick_hi_.back() = brick_hi_.back().cwiseMax(tip);
       }
-      samples.push_back(
+      samples_.push_back(
           Sample{static_cast<std::uint8_t>(j - i), axes, static_cast<std::uint32_t>(i)});
-      sample_centre.Add(grid_.Centre(voxel.x(), voxel.y(), voxel.z()));
+      sample_centre_.Add(grid.Centre(voxel.x(), voxel.y(), voxel.z()));
       i = j;
     }
   }
-  brick_start.push_back(samples.size());
-  // Each brick's middle (mm) and half extents (voxels).
-  std::vector<Eigen::Vector3d> brick_half(brick_lo.size());
-  for (std::size_t b = 0; b < brick_lo.size(); ++b) {
-    brick_centre.Add(grid_.Centre(0, 0, 0) + grid_.voxel_mm * 0.5 * (brick_lo[b] + brick_hi[b]));
-    brick_half[b] = 0.5 * (brick_hi[b] - brick_lo[b]);
+
+  // The per-view scratch, sized for the largest block; each item's t so far (t_max + 1: no cut
+  // yet) and each sample's longest part of its edges that can still hold a crossing (voxels).
+  void AllocateScratch() {
+    std::size_t largest_block = 0;  // in samples
+    std::size_t most_bricks = 0;
+    std::size_t most_items = 0;
+    for (const Block& block : blocks_) {
+      const std::size_t first = brick_start_[block.begin];
+      const std::size_t last = brick_start_[block.end];
+      largest_block = std::max(largest_block, last - first);
+      most_bricks = std::max(most_bricks, block.end - block.begin);
+      most_items = std::max<std::size_t>(
+          most_items, samples_[last - 1].first + samples_[last - 1].count - samples_[first].first);
+    }
+    for (std::vector<double>* a : {&brick_hx_, &brick_hy_, &brick_w_, &brick_u_, &brick_v_}) {
+      a->resize(most_bricks);
+    }
+    for (std::vector<double>* a : {&gathered_.x, &gathered_.y, &gathered_.z, &sample_hx_,
+                                   &sample_hy_, &sample_w_, &sample_u_, &sample_v_}) {
+      a->resize(largest_block);
+    }
+    gathered_sample_.resize(largest_block);
+    walk_.resize(largest_block);
+    const std::size_t most_rects = std::max(largest_block, most_items);
+    for (std::vector<int>* a : {&rect_u0_, &rect_v0_, &rect_u1_, &rect_v1_}) a->resize(most_rects);
+    rect_on_.resize(most_rects);
+    walk_item_.resize(most_items);
+    walk_sample_.resize(most_items);
+    for (std::vector<double>* a : {&walk_t_, &end_x_, &end_y_, &end_w_}) a->resize(most_items);
+    end_u_.resize(most_items);
+    end_v_.resize(most_items);
+    t_item_.resize(n_);
+    for (std::size_t k = 0; k < n_; ++k) t_item_[k] = items_[k].t_max + 1.0;
+    sample_t_.assign(samples_.size(), 0.0);
+    for (std::size_t s = 0; s < samples_.size(); ++s) {
+      for (std::size_t k = samples_[s].first; k < samples_[s].first + samples_[s].count; ++k) {
+        sample_t_[s] = std::max(sample_t_[s], items_[k].t_max);
+      }
+    }
   }
-  std::size_t largest_block = 0;  // in samples
-  std::size_t most_bricks = 0;
-  std::size_t most_items = 0;
-  for (const Block& block : blocks) {
-    const std::size_t first = brick_start[block.begin];
-    const std::size_t last = brick_start[block.end];
-    largest_block = std::max(largest_block, last - first);
-    most_bricks = std::max(most_bricks, block.end - block.begin);
-    most_items = std::max<std::size_t>(
-        most_items, samples[last - 1].first + samples[last - 1].count - samples[first].first);
+
+  // With culling: false when `view` cannot act on the block (its box is all on the silhouette or
+  // unseen), else *reach for it.
+  bool ReachOfBlock(const ViewData& view, const PackedMask& packed, const Block& block,
+                    Reach* reach) const {
+    const Matrix34d& p = view.pixel_from_object;
+    double projected[8][3];
+    for (int c = 0; c < 8; ++c) {
+      const Homogeneous h = Project(p, block.corners[c]);
+      projected[c][0] = h.x;
+      projected[c][1] = h.y;
+      projected[c][2] = h.w;
+    }
+    if (packed.AllOnOrUnseen(projected, view.mask01.cols, view.mask01.rows)) return false;
+    reach->bound = MaxStepPx(p, projected, hull_.grid_.voxel_mm);
+    for (int axes = 1; axes < 8; ++axes) {
+      double u = 0.0, w = 0.0;
+      for (int axis = 0; axis < 3; ++axis) {
+        if (axes & (1 << axis)) {
+          u = std::max(u, reach->bound.u_px[axis]);
+          w = std::max(w, reach->bound.v_px[axis]);
+        }
+      }
+      reach->u[axes] = u;
+      reach->v[axes] = w;
+    }
+    return true;
   }
+
+  // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
+  // (shifted by half a pixel) are all in the image and on the silhouette.
+  [[gnu::always_inline]] static bool AllOnAround(const cv::Mat& mask, const PackedMask& packed,
+                                                 double w, double u, double pv, double reach_u,
+                                                 double reach_v) {
+    const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
+    const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
+    return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
+           packed.AllOn(static_cast<int>(u_lo), static_cast<int>(v_lo), static_cast<int>(u_hi),
+                        static_cast<int>(v_hi));
+  }
+
+  // The samples of the block's bricks that `view` may act on (with culling, a brick whose box
+  // is all on the silhouette is left out), gathered with their projections; returns how many.
+  std::size_t GatherSamples(const ViewData& view, const PackedMask& packed, const Block& block,
+                            const Reach& reach, bool cull_views) {
+    const Matrix34d& p = view.pixel_from_object;
+    const StepBound& bound = reach.bound;
+    const std::size_t bricks = block.end - block.begin;
+    ProjectPoints(p, &brick_centre_.x[block.begin], &brick_centre_.y[block.begin],
+                  &brick_centre_.z[block.begin], bricks, brick_hx_.data(), brick_hy_.data(),
+                  brick_w_.data(), brick_u_.data(), brick_v_.data());
+    std::size_t count = 0;
+    for (std::size_t b = 0; b < bricks; ++b) {
+      // From the middle to a corner of the box of the brick's segments: three legs along the
+      // axes, each inside the block's box, plus a margin for the rounding of the projections
+      // (~1e-12 px).
+      const Eigen::Vector3d& half = brick_half_[block.begin + b];
+      const double brick_reach_u =
+          half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
+      const double brick_reach_v =
+          half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
+      if (cull_views && AllOnAround(view.mask01, packed, brick_w_[b], brick_u_[b], brick_v_[b],
+                                    brick_reach_u, brick_reach_v)) {
+        continue;
+      }
+      for (std::size_t s = brick_start_[block.begin + b]; s < brick_start_[block.begin + b + 1];
+           ++s) {
+        gathered_.x[count] = sample_centre_.x[s];
+        gathered_.y[count] = sample_centre_.y[s];
+        gathered_.z[count] = sample_centre_.z[s];
+        gathered_sample_[count++] = static_cast<std::uint32_t>(s);
+      }
+    }
+    ProjectPoints(p, gathered_.x.data(), gathered_.y.data(), gathered_.z.data(), count,
+                  sample_hx_.data(), sample_hy_.data(), sample_w_.data(), sample_u_.data(),
+                  sample_v_.data());
+    return count;
+  }
+
+  // walk_: the gathered samples (of `count`) whose segments may leave the silhouette (those
+  // whose segments all stay on it are left out, with no branch on the outcome: it is hard to
+  // predict); returns how many.
+  std::size_t SamplesToWalk(const ViewData& view, const PackedMask& packed, const Reach& reach,
+                            std::size_t count) {
+    const cv::Mat& mask = view.mask01;
+    // The rectangles are made first (AllOnAround's; one outside the silhouette's where that is
+    // false before any pixel is read), then tested together.
+    for (std::size_t g = 0; g < count; ++g) {
+      const std::uint32_t s = gathered_sample_[g];
+      const std::uint8_t axes = samples_[s].axes;
+      // The segments are as long as the part of them that can still hold the crossing.
+      const double t = sample_t_[s];
+      const double around_u = reach.u[axes] * t + 1e-6, around_v = reach.v[axes] * t + 1e-6;
+      const double u_lo = sample_u_[g] + 0.5 - around_u, u_hi = sample_u_[g] + 0.5 + around_u;
+      const double v_lo = sample_v_[g] + 0.5 - around_v, v_hi = sample_v_[g] + 0.5 + around_v;
+      const bool in_image =
+          sample_w_[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows;
+      rect_u0_[g] = static_cast<int>(in_image ? u_lo : -1.0);
+      rect_v0_[g] = static_cast<int>(in_image ? v_lo : -1.0);
+      rect_u1_[g] = static_cast<int>(in_image ? u_hi : -1.0);
+      rect_v1_[g] = static_cast<int>(in_image ? v_hi : -1.0);
+    }
+    packed.AllOnEach(rect_u0_.data(), rect_v0_.data(), rect_u1_.data(), rect_v1_.data(), count,
+                     rect_on_.data());
+    std::size_t walks = 0;
+    for (std::size_t g = 0; g < count; ++g) {
+      walk_[walks] = static_cast<std::uint32_t>(g);
+      walks += rect_on_[g] != 0 ? 0 : 1;
+    }
+    return walks;
+  }
+
+  // The items of the `walks` samples to walk (walk_item_, walk_sample_), with the end of the
+  // part of their segment that can matter: only the part before the nearest exit found so far
+  // (the walk of the shorter segment visits a prefix of the same cells, the same result where it
+  // matters, and its end rectangle is smaller, so it more often ends at once); then FirstExit's
+  // first test on them (rect_on_). Returns how many.
+  std::size_t ItemsToWalk(const ViewData& view, const PackedMask& packed,
+                          const double (&step_h)[3][2][3], std::size_t walks) {
+    const cv::Mat& mask = view.mask01;
+    std::size_t m = 0;
+    for (std::size_t q = 0; q < walks; ++q) {
+      const std::size_t g = walk_[q];
+      const Sample& sample = samples_[gathered_sample_[g]];
+      double longest = 0.0;
+      for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
+        const Item& item = items_[k];
+        const double t_max = std::min(item.t_max, t_item_[k]);
+        longest = std::max(longest, t_max);
+        const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+        walk_item_[m] = static_cast<std::uint32_t>(k);
+        walk_sample_[m] = static_cast<std::uint32_t>(g);
+        walk_t_[m] = t_max;
+        end_x_[m] = sample_hx_[g] + t_max * hd[0];
+        end_y_[m] = sample_hy_[g] + t_max * hd[1];
+        end_w_[m] = sample_w_[g] + t_max * hd[2];
+        ++m;
+      }
+      sample_t_[gathered_sample_[g]] = longest;
+    }
+    NearestPixels(end_x_.data(), end_y_.data(), end_w_.data(), m, end_u_.data(), end_v_.data());
+    // FirstExit's first test, on the same values, for the segments in front of the camera:
+    // the rectangle of the end pixels, clamped to the image (the others' is not used).
+    for (std::size_t r = 0; r < m; ++r) {
+      const std::size_t g = walk_sample_[r];
+      const int iu = NearestPixel(sample_u_[g]);
+      const int iv = NearestPixel(sample_v_[g]);
+      rect_u0_[r] = std::max(std::min(iu, end_u_[r]), 0);
+      rect_u1_[r] = std::min(std::max(iu, end_u_[r]), mask.cols - 1);
+      rect_v0_[r] = std::max(std::min(iv, end_v_[r]), 0);
+      rect_v1_[r] = std::min(std::max(iv, end_v_[r]), mask.rows - 1);
+    }
+    packed.AllOnEach(rect_u0_.data(), rect_v0_.data(), rect_u1_.data(), rect_v1_.data(), m,
+                     rect_on_.data());
+    return m;
+  }
+
+  // The m items to walk: each item's t lowered to where its segment first leaves `view`'s
+  // silhouette (WalkCells in front of the camera unless the end pixels' rectangle is all on
+  // it, FirstExit otherwise).
+  void WalkItems(const ViewData& view, const double (&step_h)[3][2][3], std::size_t m) {
+    for (std::size_t r = 0; r < m; ++r) {
+      const std::size_t k = walk_item_[r];
+      const std::size_t g = walk_sample_[r];
+      const Item& item = items_[k];
+      const double t_max = walk_t_[r];
+      const double hx = sample_hx_[g];
+      const double hy = sample_hy_[g];
+      const double hw = sample_w_[g];
+      const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
+      if (hw > 0.0 && end_w_[r] > 0.0) {
+        if (rect_on_[r] != 0) continue;
+        t_item_[k] =
+            std::min(t_item_[k], WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sample_u_[g]),
+                                           NearestPixel(sample_v_[g]), end_u_[r], end_v_[r]));
+        continue;
+      }
+      const Eigen::Vector3d a(gathered_.x[g], gathered_.y[g], gathered_.z[g]);
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      d[item.axis] = item.sign * hull_.grid_.voxel_mm;
+      t_item_[k] = std::min(t_item_[k], FirstExit(view, a, d, t_max));
+    }
+  }
+
+  const VisualHull& hull_;
+  const std::size_t n_;  // edges
+  const Eigen::Vector3i block_dims_;
+  std::vector<std::size_t> start_;
+  std::unique_ptr<std::uint64_t[]> order_;
+  std::vector<Item> items_;  // in the order of order_
+  std::vector<Sample> samples_;
+  Points sample_centre_;
+  std::vector<std::size_t> brick_start_;  // samples of brick b: [brick_start_[b], [b + 1])
+  Points brick_centre_;
+  // Per brick: the box of its samples' segments (grid coordinates, voxels), and its half extents.
+  std::vector<Eigen::Vector3d> brick_lo_, brick_hi_, brick_half_;
+  std::vector<Block> blocks_;
   // Per block and view: the bricks' projections, then the samples of the bricks the view may
   // act on (gathered), their projections, and the samples to walk.
-  std::vector<double> brick_hx(most_bricks), brick_hy(most_bricks), brick_w(most_bricks);
-  std::vector<double> brick_u(most_bricks), brick_v(most_bricks);
-  Points gathered;
-  gathered.x.resize(largest_block);
-  gathered.y.resize(largest_block);
-  gathered.z.resize(largest_block);
-  std::vector<std::uint32_t> gathered_sample(largest_block);
-  std::vector<double> sample_hx(largest_block), sample_hy(largest_block), sample_w(largest_block);
-  std::vector<double> sample_u(largest_block), sample_v(largest_block);
-  std::vector<std::uint32_t> walk(largest_block);
+  std::vector<double> brick_hx_, brick_hy_, brick_w_, brick_u_, brick_v_;
+  Points gathered_;
+  std::vector<std::uint32_t> gathered_sample_;
+  std::vector<double> sample_hx_, sample_hy_, sample_w_, sample_u_, sample_v_;
+  std::vector<std::uint32_t> walk_;
   // Rectangles of pixels to test together (AllOnEach): the samples', then the items'.
-  const std::size_t most_rects = std::max(largest_block, most_items);
-  std::vector<int> rect_u0(most_rects), rect_v0(most_rects), rect_u1(most_rects),
-      rect_v1(most_rects);
-  std::vector<std::uint8_t> rect_on(most_rects);
+  std::vector<int> rect_u0_, rect_v0_, rect_u1_, rect_v1_;
+  std::vector<std::uint8_t> rect_on_;
   // The items of the samples to walk: item, sample (gathered), the part of the segment that
   // can matter, and its end (P * [X; 1]; then the nearest pixel).
-  std::vector<std::uint32_t> walk_item(most_items), walk_sample(most_items);
-  std::vector<double> walk_t(most_items), end_x(most_items), end_y(most_items), end_w(most_items);
-  std::vector<int> end_u(most_items), end_v(most_items);
-  std::vector<double> t_item(n);
-  for (std::size_t k = 0; k < n; ++k) t_item[k] = items[k].t_max + 1.0;
-  // Per sample, the longest part of its edges that can still hold a crossing (in voxels).
-  std::vector<double> sample_t(samples.size());
-  for (std::size_t s = 0; s < samples.size(); ++s) {
-    for (std::size_t k = samples[s].first; k < samples[s].first + samples[s].count; ++k) {
-      sample_t[s] = std::max(sample_t[s], items[k].t_max);
-    }
-  }
-  for (int v = 0; v < views; ++v) {
-    const ViewData& view = views_[v];
-    const Matrix34d& p = view.pixel_from_object;
-    const cv::Mat& mask = view.mask01;
-    const PackedMask packed(view.roi, view.packed_words, view.packed.data());
-    // P * d for the six steps (axis, sign), as FirstExit computes it.
-    double step_h[3][2][3];
-    for (int axis = 0; axis < 3; ++axis) {
-      for (int s = 0; s < 2; ++s) {
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        d[axis] = (s == 0 ? -1 : 1) * grid_.voxel_mm;
-        for (int r = 0; r < 3; ++r) {
-          step_h[axis][s][r] = p(r, 0) * d.x() + p(r, 1) * d.y() + p(r, 2) * d.z();
-        }
-      }
-    }
-    // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
-    // (shifted by half a pixel) are all in the image and on the silhouette.
-    auto all_on_around = [&](double w, double u, double pv, double reach_u, double reach_v)
-        __attribute__((always_inline)) {
-      const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
-      const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
-      return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
-             packed.AllOn(static_cast<int>(u_lo), static_cast<int>(v_lo), static_cast<int>(u_hi),
-                          static_cast<int>(v_hi));
-    };
-    for (const Block& block : blocks) {
-      // How far the segments can move in the image (px): per set of axes (bit a: axis a) for a
-      // sample's segments of one voxel, and per voxel along each axis for a brick's (below).
-      // Infinite (NaN when multiplied by 0) where part of the block is behind the camera: then
-      // nothing is left out.
-      double reach_u[8], reach_v[8];
-      std::fill(std::begin(reach_u), std::end(reach_u), std::numeric_limits<double>::infinity());
-      std::fill(std::begin(reach_v), std::end(reach_v), std::numeric_limits<double>::infinity());
-      StepBound bound{};
-      if (cull_views) {
-        double projected[8][3];
-        for (int c = 0; c < 8; ++c) {
-          const Homogeneous h = Project(p, block.corners[c]);
-          projected[c][0] = h.x;
-          projected[c][1] = h.y;
-          projected[c][2] = h.w;
-        }
-        if (packed.AllOnOrUnseen(projected, mask.cols, mask.rows)) continue;
-        bound = MaxStepPx(p, projected, grid_.voxel_mm);
-        for (int axes = 1; axes < 8; ++axes) {
-          double u = 0.0, w = 0.0;
-          for (int axis = 0; axis < 3; ++axis) {
-            if (axes & (1 << axis)) {
-              u = std::max(u, bound.u_px[axis]);
-              w = std::max(w, bound.v_px[axis]);
-            }
-          }
-          reach_u[axes] = u;
-          reach_v[axes] = w;
-        }
-      }
-      // Bricks: those whose box is all on the silhouette are left out.
-      const std::size_t bricks = block.end - block.begin;
-      ProjectPoints(p, &brick_centre.x[block.begin], &brick_centre.y[block.begin],
-                    &brick_centre.z[block.begin], bricks, brick_hx.data(), brick_hy.data(),
-                    brick_w.data(), brick_u.data(), brick_v.data());
-      std::size_t count = 0;
-      for (std::size_t b = 0; b < bricks; ++b) {
-        // From the middle to a corner of the box of the brick's segments: three legs along the
-        // axes, each inside the block's box, plus a margin for the rounding of the projections
-        // (~1e-12 px).
-        const Eigen::Vector3d& half = brick_half[block.begin + b];
-        const double brick_reach_u =
-            half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
-        const double brick_reach_v =
-            half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
-        if (cull_views &&
-            all_on_around(brick_w[b], brick_u[b], brick_v[b], brick_reach_u, brick_reach_v)) {
-          continue;
-        }
-        for (std::size_t s = brick_start[block.begin + b]; s < brick_start[block.begin + b + 1];
-             ++s) {
-          gathered.x[count] = sample_centre.x[s];
-          gathered.y[count] = sample_centre.y[s];
-          gathered.z[count] = sample_centre.z[s];
-          gathered_sample[count++] = static_cast<std::uint32_t>(s);
-        }
-      }
-      ProjectPoints(p, gathered.x.data(), gathered.y.data(), gathered.z.data(), count,
-                    sample_hx.data(), sample_hy.data(), sample_w.data(), sample_u.data(),
-                    sample_v.data());
-      // Samples: those whose segments all stay on the silhouette are left out (no branch on
-      // the outcome: it is hard to predict).
-      // The rectangles are made first (all_on_around's; one outside the silhouette's where
-      // that is false before any pixel is read), then tested together.
-      for (std::size_t g = 0; g < count; ++g) {
-        const std::uint32_t s = gathered_sample[g];
-        const std::uint8_t axes = samples[s].axes;
-        // The segments are as long as the part of them that can still hold the crossing.
-        const double t = sample_t[s];
-        const double around_u = reach_u[axes] * t + 1e-6, around_v = reach_v[axes] * t + 1e-6;
-        const double u_lo = sample_u[g] + 0.5 - around_u, u_hi = sample_u[g] + 0.5 + around_u;
-        const double v_lo = sample_v[g] + 0.5 - around_v, v_hi = sample_v[g] + 0.5 + around_v;
-        const bool in_image =
-            sample_w[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows;
-        rect_u0[g] = static_cast<int>(in_image ? u_lo : -1.0);
-        rect_v0[g] = static_cast<int>(in_image ? v_lo : -1.0);
-        rect_u1[g] = static_cast<int>(in_image ? u_hi : -1.0);
-        rect_v1[g] = static_cast<int>(in_image ? v_hi : -1.0);
-      }
-      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), count,
-                       rect_on.data());
-      std::size_t walks = 0;
-      for (std::size_t g = 0; g < count; ++g) {
-        walk[walks] = static_cast<std::uint32_t>(g);
-        walks += rect_on[g] != 0 ? 0 : 1;
-      }
-      // The items of the samples to walk, with the end of the part of their segment that can
-      // matter: only the part before the nearest exit found so far (the walk of the shorter
-      // segment visits a prefix of the same cells, the same result where it matters, and its
-      // end rectangle is smaller, so it more often ends at once).
-      std::size_t m = 0;
-      for (std::size_t q = 0; q < walks; ++q) {
-        const std::size_t g = walk[q];
-        const Sample& sample = samples[gathered_sample[g]];
-        double longest = 0.0;
-        for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
-          const Item& item = items[k];
-          const double t_max = std::min(item.t_max, t_item[k]);
-          longest = std::max(longest, t_max);
-          const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
-          walk_item[m] = static_cast<std::uint32_t>(k);
-          walk_sample[m] = static_cast<std::uint32_t>(g);
-          walk_t[m] = t_max;
-          end_x[m] = sample_hx[g] + t_max * hd[0];
-          end_y[m] = sample_hy[g] + t_max * hd[1];
-          end_w[m] = sample_w[g] + t_max * hd[2];
-          ++m;
-        }
-        sample_t[gathered_sample[g]] = longest;
-      }
-      NearestPixels(end_x.data(), end_y.data(), end_w.data(), m, end_u.data(), end_v.data());
-      // FirstExit's first test, on the same values, for the segments in front of the camera:
-      // the rectangle of the end pixels, clamped to the image (the others' is not used).
-      for (std::size_t r = 0; r < m; ++r) {
-        const std::size_t g = walk_sample[r];
-        const int iu = NearestPixel(sample_u[g]);
-        const int iv = NearestPixel(sample_v[g]);
-        rect_u0[r] = std::max(std::min(iu, end_u[r]), 0);
-        rect_u1[r] = std::min(std::max(iu, end_u[r]), mask.cols - 1);
-        rect_v0[r] = std::max(std::min(iv, end_v[r]), 0);
-        rect_v1[r] = std::min(std::max(iv, end_v[r]), mask.rows - 1);
-      }
-      packed.AllOnEach(rect_u0.data(), rect_v0.data(), rect_u1.data(), rect_v1.data(), m,
-                       rect_on.data());
-      for (std::size_t r = 0; r < m; ++r) {
-        const std::size_t k = walk_item[r];
-        const std::size_t g = walk_sample[r];
-        const Item& item = items[k];
-        const double t_max = walk_t[r];
-        const double hx = sample_hx[g];
-        const double hy = sample_hy[g];
-        const double hw = sample_w[g];
-        const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
-        if (hw > 0.0 && end_w[r] > 0.0) {
-          if (rect_on[r] != 0) continue;
-          t_item[k] =
-              std::min(t_item[k], WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sample_u[g]),
-                                            NearestPixel(sample_v[g]), end_u[r], end_v[r]));
-          continue;
-        }
-        const Eigen::Vector3d a(gathered.x[g], gathered.y[g], gathered.z[g]);
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        d[item.axis] = item.sign * grid_.voxel_mm;
-        t_item[k] = std::min(t_item[k], FirstExit(view, a, d, t_max));
-      }
-    }
-  }
-  // No view cuts the segment: its end (the grid's face, the plane, or rounding for an edge
-  // inside the grid, whose outside sample some view carved).
-  std::vector<double> t(n);
-  for (std::size_t k = 0; k < n; ++k) t[items[k].edge] = std::min(t_item[k], items[k].t_max);
-  return t;
+  std::vector<std::uint32_t> walk_item_, walk_sample_;
+  std::vector<double> walk_t_, end_x_, end_y_, end_w_;
+  std::vector<int> end_u_, end_v_;
+  std::vector<double> t_item_;
+  std::vector<double> sample_t_;
+};
+
+std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
+                                             std::optional<double> clip_below_z_mm,
+                                             bool cull_views) const {
+  EdgePlacer placer(*this, edges, clip_below_z_mm);
+  for (const ViewData& view : views_) placer.PlaceInView(view, cull_views);
+  return placer.Result();
 }
 
 }  // namespace revolve::reconstruct

@@ -165,7 +165,9 @@ class VisualHull {
   void AddBox(BoxBatch* boxes, int i, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) const;
   // A rectangle (ProjectedRect) holding the projection of each box.
   static void RectsOfBoxes(const Matrix34d& p, const BoxBatch& boxes, ProjectedRect* rects);
-  // Where every cut edge first leaves the hull (see ExtractSurface).
+  // Where every cut edge first leaves the hull (see ExtractSurface), by an EdgePlacer
+  // (surface_placement.cc).
+  class EdgePlacer;
   std::vector<double> PlaceOnEdges(const std::vector<GridEdge>& edges,
                                    std::optional<double> clip_below_z_mm, bool cull_views) const;
   // The first t in [0, t_max] where a + t d leaves `view`'s silhouette; t_max + 1 when it

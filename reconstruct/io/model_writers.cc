@@ -13,8 +13,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 
-#include "reconstruct/io/writer_support.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -193,166 +193,154 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
   return file.Commit();
 }
 
-Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
-  const bool textured = mesh.HasTexture();
-  const bool colors = !textured && mesh.HasColors();
-  // The mesh's own normals (TextureMesh's) where it has them: the same values.
-  std::vector<Eigen::Vector3f> computed_normals;
-  if (!mesh.HasNormals()) computed_normals = VertexNormals(mesh);
-  const std::vector<Eigen::Vector3f>& vertex_normals =
-      mesh.HasNormals() ? mesh.normals : computed_normals;
+namespace {
 
-  // The vertices as glTF sees them: split by uv where textured, else the mesh's own (written
-  // straight from the mesh's arrays).
-  std::vector<int> source;             // glTF vertex -> mesh vertex (textured)
-  std::vector<int> uv_of;              // glTF vertex -> uv index (textured)
-  std::vector<std::uint32_t> indices;  // (textured)
-  if (textured) {
-    indices.reserve(mesh.faces.size() * 3);
-    std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
-    std::unordered_map<std::uint64_t, int> others;
-    for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
-      for (int c = 0; c < 3; ++c) {
-        const int v = mesh.faces[i][c];
-        const int t = mesh.uv_faces[i][c];
-        int& slot = first[t];
-        int index = slot;
-        if (index < 0 || source[index] != v) {
-          const std::uint64_t key = (std::uint64_t(std::uint32_t(v)) << 32) | std::uint32_t(t);
-          if (index >= 0) {
-            const auto it = others.find(key);
-            index = it == others.end() ? -1 : it->second;
-          }
-          if (index < 0) {
-            index = static_cast<int>(source.size());
-            source.push_back(v);
-            uv_of.push_back(t);
-            if (slot < 0) {
-              slot = index;
-            } else {
-              others.emplace(key, index);
-            }
+// The vertices as glTF sees them where the mesh is textured: one per (vertex, uv) pair a face
+// corner uses, numbered in the order of first use.
+struct GlbSplit {
+  std::vector<int> source;             // glTF vertex -> mesh vertex
+  std::vector<int> uv_of;              // glTF vertex -> uv index
+  std::vector<std::uint32_t> indices;  // per face corner: its glTF vertex
+};
+GlbSplit SplitByUv(const Mesh& mesh) {
+  GlbSplit out;
+  std::vector<int>& source = out.source;
+  out.indices.reserve(mesh.faces.size() * 3);
+  std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
+  std::unordered_map<std::uint64_t, int> others;
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const int v = mesh.faces[i][c];
+      const int t = mesh.uv_faces[i][c];
+      int& slot = first[t];
+      int index = slot;
+      if (index < 0 || source[index] != v) {
+        const std::uint64_t key = (std::uint64_t(std::uint32_t(v)) << 32) | std::uint32_t(t);
+        if (index >= 0) {
+          const auto it = others.find(key);
+          index = it == others.end() ? -1 : it->second;
+        }
+        if (index < 0) {
+          index = static_cast<int>(source.size());
+          source.push_back(v);
+          out.uv_of.push_back(t);
+          if (slot < 0) {
+            slot = index;
+          } else {
+            others.emplace(key, index);
           }
         }
-        indices.push_back(static_cast<std::uint32_t>(index));
       }
+      out.indices.push_back(static_cast<std::uint32_t>(index));
     }
   }
-  const std::size_t n = textured ? source.size() : mesh.vertices.size();
-  const std::size_t index_count = 3 * mesh.faces.size();
+  return out;
+}
 
-  std::string encoded;
-  if (textured && png == nullptr) {
-    Expected<std::string> bytes = internal::EncodePng(mesh.texture);
-    if (!bytes) {
-      return std::unexpected(bytes.error());
-    }
-    encoded = std::move(*bytes);
-    png = &encoded;
-  }
-  // The binary chunk's layout (views 4-byte aligned), known before any of it is written.
+// The binary chunk's layout (views 4-byte aligned), known before any of it is written: for n
+// vertices, positions, normals, then uvs (textured) or colours (coloured), the indices and the
+// texture's PNG (textured).
+struct GlbLayout {
   struct View {
     std::size_t offset, length;
     int target;  // 0: none
   };
   std::vector<View> views;
   std::size_t bin_size = 0;
-  auto add_view = [&](std::size_t length, int target) {
+  int position_view = -1, normal_view = -1, extra_view = -1, index_view = -1, image_view = -1;
+
+  GlbLayout(std::size_t n, std::size_t index_count, bool textured, bool colors,
+            std::size_t png_size) {
+    position_view = Add(n * 12, 34962);
+    normal_view = Add(n * 12, 34962);
+    if (textured) {
+      extra_view = Add(n * 8, 34962);
+    } else if (colors) {
+      extra_view = Add(n * 4, 34962);
+    }
+    index_view = Add(index_count * 4, 34963);
+    image_view = textured ? Add(png_size, 0) : -1;
+  }
+  int Add(std::size_t length, int target) {
     views.push_back({bin_size, length, target});
     bin_size += (length + 3) / 4 * 4;
     return static_cast<int>(views.size() - 1);
-  };
-  const int position_view = add_view(n * 12, 34962);
-  const int normal_view = add_view(n * 12, 34962);
-  int extra_view = -1;
-  if (textured) {
-    extra_view = add_view(n * 8, 34962);
-  } else if (colors) {
-    extra_view = add_view(n * 4, 34962);
   }
-  const int index_view = add_view(index_count * 4, 34963);
-  const int image_view = textured ? add_view(png->size(), 0) : -1;
-  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
-  Eigen::Vector3f hi = -lo;
-  auto include = [&lo, &hi](const Eigen::Vector3f& p) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  };
-  if (textured) {
-    for (int v : source) {
-      include(mesh.vertices[v]);
-    }
-  } else {
-    std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
-  }
+};
 
+// The JSON chunk (padded with spaces to 4 bytes) for a mesh of n glTF vertices (positions in
+// [lo, hi]) and index_count indices laid out as `layout` says.
+std::string GlbJson(const Mesh& mesh, const GlbLayout& layout, std::size_t n,
+                    std::size_t index_count, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi,
+                    bool textured, bool colors) {
   std::string json = R"({"asset":{"version":"2.0","generator":"revolve"},"scene":0,)";
   if (mesh.faces.empty()) {
     json += R"("scenes":[{}]})";
-  } else {
-    json +=
-        R"("scenes":[{"nodes":[0]}],"nodes":[{"name":"model","mesh":0,)"
-        R"("rotation":[-0.7071067811865476,0,0,0.7071067811865476],"scale":[0.001,0.001,0.001]}],)";
-    json += R"("meshes":[{"name":"model","primitives":[{"attributes":{"POSITION":0,"NORMAL":1)";
-    if (textured) {
-      json += R"(,"TEXCOORD_0":2)";
-    } else if (colors) {
-      json += R"(,"COLOR_0":2)";
-    }
-    json += fmt::format(R"(}},"indices":{},"material":0,"mode":4}}]}}],)", extra_view >= 0 ? 3 : 2);
-    json += fmt::format(R"("materials":[{{"name":"{}","pbrMetallicRoughness":{{)", kMaterialName);
-    json += textured ? R"("baseColorTexture":{"index":0},)"
-                     : (colors ? "" : R"("baseColorFactor":[0.8,0.8,0.8,1],)");
-    json += R"("metallicFactor":0,"roughnessFactor":1}}],)";
-    if (textured) {
-      json += fmt::format(
-          R"("textures":[{{"sampler":0,"source":0}}],)"
-          R"("samplers":[{{"magFilter":9729,"minFilter":9729,"wrapS":33071,"wrapT":33071}}],)"
-          R"("images":[{{"bufferView":{},"mimeType":"image/png"}}],)",
-          image_view);
-    }
-    json += R"("accessors":[)";
-    json +=
-        fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3","min":[)",
-                    position_view, n);
-    for (int k = 0; k < 3; ++k) {
-      if (k > 0) json += ',';
-      AppendExact(&json, lo[k]);
-    }
-    json += R"(],"max":[)";
-    for (int k = 0; k < 3; ++k) {
-      if (k > 0) json += ',';
-      AppendExact(&json, hi[k]);
-    }
-    json += "]},";
-    json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3"}},)",
-                        normal_view, n);
-    if (textured) {
-      json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC2"}},)",
-                          extra_view, n);
-    } else if (colors) {
-      json += fmt::format(
-          R"({{"bufferView":{},"componentType":5121,"normalized":true,"count":{},"type":"VEC4"}},)",
-          extra_view, n);
-    }
-    json += fmt::format(R"({{"bufferView":{},"componentType":5125,"count":{},"type":"SCALAR"}}],)",
-                        index_view, index_count);
-    json += R"("bufferViews":[)";
-    for (std::size_t i = 0; i < views.size(); ++i) {
-      if (i > 0) json += ',';
-      json += fmt::format(R"({{"buffer":0,"byteOffset":{},"byteLength":{})", views[i].offset,
-                          views[i].length);
-      if (views[i].target != 0) json += fmt::format(R"(,"target":{})", views[i].target);
-      json += '}';
-    }
-    json += fmt::format(R"(],"buffers":[{{"byteLength":{}}}]}})", bin_size);
+    Pad4(&json, ' ');
+    return json;
   }
+  json +=
+      R"("scenes":[{"nodes":[0]}],"nodes":[{"name":"model","mesh":0,)"
+      R"("rotation":[-0.7071067811865476,0,0,0.7071067811865476],"scale":[0.001,0.001,0.001]}],)";
+  json += R"("meshes":[{"name":"model","primitives":[{"attributes":{"POSITION":0,"NORMAL":1)";
+  if (textured) {
+    json += R"(,"TEXCOORD_0":2)";
+  } else if (colors) {
+    json += R"(,"COLOR_0":2)";
+  }
+  json += fmt::format(R"(}},"indices":{},"material":0,"mode":4}}]}}],)",
+                      layout.extra_view >= 0 ? 3 : 2);
+  json += fmt::format(R"("materials":[{{"name":"{}","pbrMetallicRoughness":{{)", kMaterialName);
+  json += textured ? R"("baseColorTexture":{"index":0},)"
+                   : (colors ? "" : R"("baseColorFactor":[0.8,0.8,0.8,1],)");
+  json += R"("metallicFactor":0,"roughnessFactor":1}}],)";
+  if (textured) {
+    json += fmt::format(
+        R"("textures":[{{"sampler":0,"source":0}}],)"
+        R"("samplers":[{{"magFilter":9729,"minFilter":9729,"wrapS":33071,"wrapT":33071}}],)"
+        R"("images":[{{"bufferView":{},"mimeType":"image/png"}}],)",
+        layout.image_view);
+  }
+  json += R"("accessors":[)";
+  json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3","min":[)",
+                      layout.position_view, n);
+  for (int k = 0; k < 3; ++k) {
+    if (k > 0) json += ',';
+    AppendExact(&json, lo[k]);
+  }
+  json += R"(],"max":[)";
+  for (int k = 0; k < 3; ++k) {
+    if (k > 0) json += ',';
+    AppendExact(&json, hi[k]);
+  }
+  json += "]},";
+  json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3"}},)",
+                      layout.normal_view, n);
+  if (textured) {
+    json += fmt::format(R"({{"bufferView":{},"componentType":5126,"count":{},"type":"VEC2"}},)",
+                        layout.extra_view, n);
+  } else if (colors) {
+    json += fmt::format(
+        R"({{"bufferView":{},"componentType":5121,"normalized":true,"count":{},"type":"VEC4"}},)",
+        layout.extra_view, n);
+  }
+  json += fmt::format(R"({{"bufferView":{},"componentType":5125,"count":{},"type":"SCALAR"}}],)",
+                      layout.index_view, index_count);
+  json += R"("bufferViews":[)";
+  for (std::size_t i = 0; i < layout.views.size(); ++i) {
+    if (i > 0) json += ',';
+    json += fmt::format(R"({{"buffer":0,"byteOffset":{},"byteLength":{})", layout.views[i].offset,
+                        layout.views[i].length);
+    if (layout.views[i].target != 0) json += fmt::format(R"(,"target":{})", layout.views[i].target);
+    json += '}';
+  }
+  json += fmt::format(R"(],"buffers":[{{"byteLength":{}}}]}})", layout.bin_size);
   Pad4(&json, ' ');
+  return json;
+}
 
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
+// The GLB header, the JSON chunk and the binary chunk's header (when bin_size > 0).
+std::string GlbHead(const std::string& json, std::size_t bin_size) {
   const bool has_bin = bin_size > 0;
   std::string header;
   auto add_word = [&header](std::uint32_t word) {
@@ -368,7 +356,58 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
     add_word(static_cast<std::uint32_t>(bin_size));
     add_word(0x004E4942);  // "BIN\0"
   }
-  file.Append(header);
+  return header;
+}
+
+}  // namespace
+
+Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
+  const bool textured = mesh.HasTexture();
+  const bool colors = !textured && mesh.HasColors();
+  // The mesh's own normals (TextureMesh's) where it has them: the same values.
+  std::vector<Eigen::Vector3f> computed_normals;
+  if (!mesh.HasNormals()) computed_normals = VertexNormals(mesh);
+  const std::vector<Eigen::Vector3f>& vertex_normals =
+      mesh.HasNormals() ? mesh.normals : computed_normals;
+
+  // The vertices as glTF sees them: split by uv where textured, else the mesh's own (written
+  // straight from the mesh's arrays).
+  const GlbSplit split = textured ? SplitByUv(mesh) : GlbSplit{};
+  const std::vector<int>& source = split.source;
+  const std::size_t n = textured ? source.size() : mesh.vertices.size();
+  const std::size_t index_count = 3 * mesh.faces.size();
+
+  std::string encoded;
+  if (textured && png == nullptr) {
+    Expected<std::string> bytes = internal::EncodePng(mesh.texture);
+    if (!bytes) {
+      return std::unexpected(bytes.error());
+    }
+    encoded = std::move(*bytes);
+    png = &encoded;
+  }
+  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f hi = -lo;
+  auto include = [&lo, &hi](const Eigen::Vector3f& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  };
+  if (textured) {
+    for (int v : source) {
+      include(mesh.vertices[v]);
+    }
+  } else {
+    std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
+  }
+  const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, textured, colors);
+
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) {
+    return opened;
+  }
+  const bool has_bin = layout.bin_size > 0;
+  file.Append(GlbHead(json, layout.bin_size));
   if (has_bin && textured) {
     file.PutEach(n, 12, [&](char* p, std::size_t i) {
       std::memcpy(p, mesh.vertices[source[i]].data(), 12);
@@ -379,10 +418,10 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
       return p + 12;
     });
     file.PutEach(n, 8, [&](char* p, std::size_t i) {
-      std::memcpy(p, mesh.uvs[uv_of[i]].data(), 8);
+      std::memcpy(p, mesh.uvs[split.uv_of[i]].data(), 8);
       return p + 8;
     });
-    file.Append(BytesOf(indices));
+    file.Append(BytesOf(split.indices));
     file.Append(*png);
     file.Append(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
   } else if (has_bin) {

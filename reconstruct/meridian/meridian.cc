@@ -156,7 +156,8 @@ Expected<Mesh> MeridianReconstructor::Finish() {
   return std::move(model->mesh);
 }
 
-Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
+Expected<std::vector<const MeridianReconstructor::Meridian*>>
+MeridianReconstructor::ChooseMeridians() const {
   // Meridians in azimuth order: left ones (duplicates of one azimuth dropped), then right ones not
   // within a quarter step of a left one.
   std::vector<const Meridian*> chosen;
@@ -186,7 +187,11 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
   }
   std::sort(chosen.begin(), chosen.end(),
             [](const Meridian* a, const Meridian* b) { return a->azimuth_rad < b->azimuth_rad; });
+  return chosen;
+}
 
+Expected<std::vector<int>> MeridianReconstructor::SampledRows(
+    const std::vector<const Meridian*>& chosen) const {
   const int all_rows = static_cast<int>(chosen.front()->points.size());
   int first_row = all_rows;
   int last_row = -1;
@@ -213,12 +218,17 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
   for (int v = first_row; v < last_row; v += options_.row_step_px) rows.push_back(v);
   rows.push_back(last_row);
 
-  MeridianModel model;
-  const int meridian_count = static_cast<int>(chosen.size());
-  const int row_count = static_cast<int>(rows.size());
-  model.meridian_count = meridian_count;
-  model.row_count = row_count;
-  Mesh& mesh = model.mesh;
+  return rows;
+}
+
+std::vector<int> MeridianReconstructor::BuildMesh(const std::vector<const Meridian*>& chosen,
+                                                  const std::vector<int>& rows,
+                                                  MeridianModel* model) {
+  Mesh& mesh = model->mesh;
+  const int meridian_count = model->meridian_count;
+  const int row_count = model->row_count;
+  const int first_row = rows.front();
+  const int last_row = rows.back();
   Eigen::Vector3d top = Eigen::Vector3d::Zero();
   Eigen::Vector3d bottom = Eigen::Vector3d::Zero();
   for (const Meridian* m : chosen) {
@@ -270,10 +280,18 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
     for (Eigen::Vector3i& f : mesh.faces) std::swap(f[1], f[2]);
   }
 
+  return face_strip;
+}
+
+void MeridianReconstructor::TextureStrips(const std::vector<int>& face_strip,
+                                          MeridianModel* model) const {
   // Texture: per strip (and cap) the view facing it most squarely.
   const bool any_image =
       std::any_of(views_.begin(), views_.end(), [](const ViewData& v) { return !v.image.empty(); });
-  if (!any_image) return model;
+  if (!any_image) return;
+  const Mesh& mesh = model->mesh;
+  const int meridian_count = model->meridian_count;
+  const int row_count = model->row_count;
   const int groups = meridian_count + 2;
   std::vector<Eigen::Vector3d> normal(static_cast<std::size_t>(groups), Eigen::Vector3d::Zero());
   std::vector<Eigen::Vector3d> centre(static_cast<std::size_t>(groups), Eigen::Vector3d::Zero());
@@ -305,9 +323,9 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
       }
     }
     if (group_view[gi] >= 0 && texture_of_view.count(group_view[gi]) == 0) {
-      const int t = static_cast<int>(model.textures.size());
+      const int t = static_cast<int>(model->textures.size());
       texture_of_view[group_view[gi]] = t;
-      model.textures.push_back(views_[static_cast<std::size_t>(group_view[gi])].image);
+      model->textures.push_back(views_[static_cast<std::size_t>(group_view[gi])].image);
     }
   }
   // Texture coordinates: one per (group, vertex), the vertex projected into the group's view.
@@ -321,27 +339,39 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
     (void)view.Project(mesh.vertices[vertex_index].cast<double>(), &pixel);
     const double s = std::clamp((pixel.x() + 0.5) / view.width_px, 0.0, 1.0);
     const double t = std::clamp(1.0 - (pixel.y() + 0.5) / view.height_px, 0.0, 1.0);
-    const int index = static_cast<int>(model.uv.size());
-    model.uv.emplace_back(static_cast<float>(s), static_cast<float>(t));
+    const int index = static_cast<int>(model->uv.size());
+    model->uv.emplace_back(static_cast<float>(s), static_cast<float>(t));
     uv_index.emplace(key, index);
     return index;
   };
-  model.face_uv.resize(mesh.faces.size(), Eigen::Vector3i::Zero());
-  model.face_texture.resize(mesh.faces.size(), -1);
+  model->face_uv.resize(mesh.faces.size(), Eigen::Vector3i::Zero());
+  model->face_texture.resize(mesh.faces.size(), -1);
   for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
     const int g = face_strip[f];
     const int view = group_view[static_cast<std::size_t>(g)];
     if (view < 0) continue;
-    model.face_texture[f] = texture_of_view[view];
-    for (int k = 0; k < 3; ++k) model.face_uv[f][k] = uv_of(g, mesh.faces[f][k]);
+    model->face_texture[f] = texture_of_view[view];
+    for (int k = 0; k < 3; ++k) model->face_uv[f][k] = uv_of(g, mesh.faces[f][k]);
   }
-  if (model.uv.empty()) model.uv.emplace_back(0.0f, 0.0f);  // untextured faces point at it
+  if (model->uv.empty()) model->uv.emplace_back(0.0f, 0.0f);  // untextured faces point at it
   Logger("reconstruct")
       ->info(
           "meridian: {} views, {} meridians x {} rows (every {} px), {} triangles, {} "
           "texture image(s)",
           views_.size(), meridian_count, row_count, options_.row_step_px, mesh.faces.size(),
-          model.textures.size());
+          model->textures.size());
+}
+
+Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
+  Expected<std::vector<const Meridian*>> chosen = ChooseMeridians();
+  if (!chosen) return std::unexpected(chosen.error());
+  Expected<std::vector<int>> rows = SampledRows(*chosen);
+  if (!rows) return std::unexpected(rows.error());
+  MeridianModel model;
+  model.meridian_count = static_cast<int>(chosen->size());
+  model.row_count = static_cast<int>(rows->size());
+  const std::vector<int> face_strip = BuildMesh(*chosen, *rows, &model);
+  TextureStrips(face_strip, &model);
   return model;
 }
 

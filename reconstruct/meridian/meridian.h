@@ -103,6 +103,22 @@ class MeridianReconstructor final : public Reconstructor {
     cv::Mat image;  // BGR or empty
   };
 
+  // The steps of FinishModel. The meridians in azimuth order: the left ones (duplicates of one
+  // azimuth dropped), then the right ones not within a quarter step of a left one; bad_input
+  // when fewer than 3.
+  Expected<std::vector<const Meridian*>> ChooseMeridians() const;
+  // The image rows sampled: every row_step_px-th from the object's top row, and its bottom row
+  // (at least two rows); bad_input when no row or only one holds an object pixel.
+  Expected<std::vector<int>> SampledRows(const std::vector<const Meridian*>& chosen) const;
+  // model->mesh from the meridians' points on `rows` (model's meridian_count and row_count set):
+  // strips of quads between neighbouring meridians and the two caps, outward; returns each
+  // face's strip (meridian_count: the top cap, + 1: the bottom cap).
+  static std::vector<int> BuildMesh(const std::vector<const Meridian*>& chosen,
+                                    const std::vector<int>& rows, MeridianModel* model);
+  // The texture (when any view has an image): per strip and cap the view facing it most
+  // squarely, its image, and each face's uvs in it.
+  void TextureStrips(const std::vector<int>& face_strip, MeridianModel* model) const;
+
   MeridianOptions options_;
   int width_px_ = 0;
   int height_px_ = 0;

@@ -1,0 +1,251 @@
+#include <limits>
+#include <numeric>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+
+#include "reconstruct/texture/texture_internal.h"
+#include "reconstruct/union_find.h"
+
+namespace revolve::reconstruct::texture_internal {
+namespace {
+
+// Shelf packing of `sizes` (w, h) into a strip `width` wide; returns the height used, or -1
+// when a rectangle is wider than the strip.
+int PackShelves(const std::vector<Rect>& sizes, int width, std::vector<Rect>* placed) {
+  std::vector<int> order(sizes.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return sizes[a].h > sizes[b].h; });
+  placed->assign(sizes.size(), Rect{});
+  int x = 0, y = 0, shelf = 0;
+  for (int i : order) {
+    const Rect& s = sizes[i];
+    if (s.w > width) return -1;
+    if (x + s.w > width) {
+      y += shelf;
+      x = 0;
+      shelf = 0;
+    }
+    (*placed)[i] = Rect{x, y, s.w, s.h};
+    x += s.w;
+    shelf = std::max(shelf, s.h);
+  }
+  return y + shelf;
+}
+
+}  // namespace
+
+std::vector<int> LabelFaces(const std::vector<float>& face_cos,
+                            const std::vector<Candidates>& face_candidates,
+                            const std::vector<std::array<int, 3>>& neighbours) {
+  const int nf = static_cast<int>(face_candidates.size());
+  // The best visible candidate.
+  std::vector<int> label(nf, -1);
+  for (int i = 0; i < nf; ++i) {
+    float best = -2.0f;
+    for (int s = 0; s < kCandidates; ++s) {
+      const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
+      if (c > best) {
+        best = c;
+        label[i] = face_candidates[i].view[s];
+      }
+    }
+  }
+  // Iterated conditional modes: each face takes the visible candidate maximising its cosine plus
+  // kNeighbourBonus per edge-neighbour with the same view, so the small islands and ragged
+  // borders that nearly equal views leave behind merge into their surroundings.
+  std::vector<int> next(nf);
+  for (int pass = 0; pass < kSmoothingPasses; ++pass) {
+    for (int i = 0; i < nf; ++i) {
+      next[i] = label[i];
+      float best = -std::numeric_limits<float>::infinity();
+      for (int s = 0; s < kCandidates; ++s) {
+        const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
+        if (c <= -2.0f) continue;
+        const int view = face_candidates[i].view[s];
+        float score = c;
+        for (int nb : neighbours[i]) {
+          if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
+        }
+        if (score > best) {
+          best = score;
+          next[i] = view;
+        }
+      }
+    }
+    label.swap(next);
+  }
+  return label;
+}
+
+Charts GroupCharts(const std::vector<int>& label,
+                   const std::vector<std::array<int, 3>>& neighbours) {
+  const int nf = static_cast<int>(label.size());
+  Charts out;
+  UnionFind sets(nf);
+  for (int i = 0; i < nf; ++i) {
+    for (int nb : neighbours[i]) {
+      if (nb >= 0 && label[nb] == label[i] && label[i] >= 0) sets.Unite(i, nb);
+    }
+  }
+  std::vector<int> chart_of(nf, -1);
+  for (int i = 0; i < nf; ++i) {
+    if (label[i] < 0) {
+      ++out.unseen_faces;
+      continue;
+    }
+    const int root = sets.Find(i);
+    if (chart_of[root] < 0) {
+      chart_of[root] = static_cast<int>(out.view.size());
+      out.view.push_back(label[i]);
+    }
+    chart_of[i] = chart_of[root];
+  }
+  const int charts = static_cast<int>(out.view.size());
+  out.count = charts;
+  // Faces grouped by chart (counting sort); the unseen faces last.
+  std::vector<int>& chart_start = out.start;
+  chart_start.assign(charts + 2, 0);
+  for (int i = 0; i < nf; ++i) ++chart_start[(chart_of[i] < 0 ? charts : chart_of[i]) + 1];
+  std::partial_sum(chart_start.begin(), chart_start.end(), chart_start.begin());
+  out.faces.resize(nf);
+  std::vector<int> fill(chart_start.begin(), chart_start.end() - 1);
+  for (int i = 0; i < nf; ++i) out.faces[fill[chart_of[i] < 0 ? charts : chart_of[i]]++] = i;
+  return out;
+}
+
+std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
+                             const std::vector<ViewGeometry>& geometry) {
+  std::vector<Rect> source(charts.count);
+  for (int c = 0; c < charts.count; ++c) {
+    const ViewGeometry& g = geometry[charts.view[c]];
+    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh.faces[charts.faces[k]][corner];
+        float u = 0.0f, v = 0.0f;
+        if (!g.Project(mesh.vertices[vi], &u, &v)) continue;
+        u0 = std::min(u0, u);
+        u1 = std::max(u1, u);
+        v0 = std::min(v0, v);
+        v1 = std::max(v1, v);
+      }
+    }
+    Rect r;
+    r.x = std::clamp(static_cast<int>(std::floor(u0)) - kChartMarginPx, 0, g.width - 1);
+    r.y = std::clamp(static_cast<int>(std::floor(v0)) - kChartMarginPx, 0, g.height - 1);
+    const int x1 = std::clamp(static_cast<int>(std::ceil(u1)) + kChartMarginPx, r.x, g.width - 1);
+    const int y1 = std::clamp(static_cast<int>(std::ceil(v1)) + kChartMarginPx, r.y, g.height - 1);
+    r.w = x1 - r.x + 1;
+    r.h = y1 - r.y + 1;
+    source[c] = r;
+  }
+  return source;
+}
+
+Expected<Packing> PackCharts(const std::vector<Rect>& source, int max_side) {
+  const int charts = static_cast<int>(source.size());
+  Packing out;
+  std::vector<Rect> sizes(charts + 1);  // the unseen patch is rectangle `charts`
+  double scale = 1.0;
+  for (int attempt = 0; attempt < 40 && out.width == 0; ++attempt) {
+    if (attempt > 0) scale *= 0.85;
+    int widest = kUnseenPatch;
+    for (int c = 0; c < charts; ++c) {
+      sizes[c].w = std::max(1, static_cast<int>(std::ceil(source[c].w * scale)));
+      sizes[c].h = std::max(1, static_cast<int>(std::ceil(source[c].h * scale)));
+      widest = std::max(widest, sizes[c].w);
+    }
+    sizes[charts] = Rect{0, 0, kUnseenPatch, kUnseenPatch};
+    for (int width = 64; width <= max_side; width *= 2) {
+      if (width < widest) continue;
+      const int height = PackShelves(sizes, width, &out.placed);
+      if (height > 0 && (height <= width || (width * 2 > max_side && height <= max_side))) {
+        out.width = width;
+        out.height = (height + 3) / 4 * 4;
+        break;
+      }
+    }
+  }
+  if (out.width == 0) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("cannot pack {} charts into a {} px atlas", charts, max_side));
+  }
+  out.scale = scale;
+  return out;
+}
+
+cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
+                  const std::vector<cv::Mat>& images) {
+  const std::vector<Rect>& placed = packing.placed;
+  cv::Mat atlas(packing.height, packing.width, CV_8UC3, cv::Scalar(0, 0, 0));
+  atlas(cv::Rect(placed[charts.count].x, placed[charts.count].y, kUnseenPatch, kUnseenPatch))
+      .setTo(cv::Scalar(kUnseenColor[2], kUnseenColor[1], kUnseenColor[0]));
+  for (int c = 0; c < charts.count; ++c) {
+    const Rect& s = source[c];
+    const Rect& d = placed[c];
+    const cv::Mat from = images[charts.view[c]](cv::Rect(s.x, s.y, s.w, s.h));
+    cv::Mat to = atlas(cv::Rect(d.x, d.y, d.w, d.h));
+    if (s.w == d.w && s.h == d.h) {
+      from.copyTo(to);
+    } else {
+      cv::resize(from, to, to.size(), 0, 0, cv::INTER_AREA);
+    }
+  }
+  return atlas;
+}
+
+void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
+               const std::vector<ViewGeometry>& geometry, Mesh* mesh) {
+  const int nv = static_cast<int>(mesh->vertices.size());
+  const int nf = static_cast<int>(mesh->faces.size());
+  const std::vector<Rect>& placed = packing.placed;
+  std::vector<Eigen::Vector2f> uvs;
+  std::vector<Eigen::Vector3i> uv_faces(nf);
+  uvs.reserve(nv + nv / 4);
+  const float inv_w = 1.0f / packing.width;
+  const float inv_h = 1.0f / packing.height;
+  std::vector<int> uv_of(nv, -1);
+  std::vector<int> chart_stamp(nv, -1);
+  for (int c = 0; c < charts.count; ++c) {
+    const ViewGeometry& g = geometry[charts.view[c]];
+    const Rect& s = source[c];
+    const Rect& d = placed[c];
+    const float sx = static_cast<float>(d.w) / s.w;
+    const float sy = static_cast<float>(d.h) / s.h;
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      const int fi = charts.faces[k];
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh->faces[fi][corner];
+        if (chart_stamp[vi] != c) {
+          chart_stamp[vi] = c;
+          float u = 0.0f, v = 0.0f;
+          if (!g.Project(mesh->vertices[vi], &u, &v)) {
+            u = static_cast<float>(s.x);
+            v = static_cast<float>(s.y);
+          }
+          // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
+          const float tx = d.x + (u - s.x + 0.5f) * sx;
+          const float ty = d.y + (v - s.y + 0.5f) * sy;
+          uv_of[vi] = static_cast<int>(uvs.size());
+          uvs.emplace_back(std::clamp(tx * inv_w, 0.0f, 1.0f), std::clamp(ty * inv_h, 0.0f, 1.0f));
+        }
+        uv_faces[fi][corner] = uv_of[vi];
+      }
+    }
+  }
+  const int unseen = charts.count;
+  if (charts.start[unseen + 1] > charts.start[unseen]) {
+    const int unseen_uv = static_cast<int>(uvs.size());
+    uvs.emplace_back((placed[unseen].x + 0.5f * kUnseenPatch) * inv_w,
+                     (placed[unseen].y + 0.5f * kUnseenPatch) * inv_h);
+    for (int k = charts.start[unseen]; k < charts.start[unseen + 1]; ++k) {
+      uv_faces[charts.faces[k]] = Eigen::Vector3i::Constant(unseen_uv);
+    }
+  }
+  mesh->uvs = std::move(uvs);
+  mesh->uv_faces = std::move(uv_faces);
+}
+
+}  // namespace revolve::reconstruct::texture_internal

@@ -1,0 +1,208 @@
+#include <numeric>
+
+#include "reconstruct/texture/texture_internal.h"
+
+namespace revolve::reconstruct::texture_internal {
+namespace {
+
+// The (up to 3) faces sharing an edge with each face; -1 for a border edge.
+std::vector<std::array<int, 3>> FaceNeighbours(const Mesh& mesh) {
+  const int nv = static_cast<int>(mesh.vertices.size());
+  const int nf = static_cast<int>(mesh.faces.size());
+  std::vector<int> start(nv + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int c = 0; c < 3; ++c) ++start[f[c] + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<int> faces_of(start.back());
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (int i = 0; i < nf; ++i) {
+    for (int c = 0; c < 3; ++c) faces_of[fill[mesh.faces[i][c]]++] = i;
+  }
+  std::vector<std::array<int, 3>> neighbours(nf, {-1, -1, -1});
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    for (int c = 0; c < 3; ++c) {
+      const int a = f[c];
+      const int b = f[(c + 1) % 3];
+      for (int k = start[a]; k < start[a + 1]; ++k) {
+        const int g = faces_of[k];
+        if (g == i) continue;
+        const Eigen::Vector3i& h = mesh.faces[g];
+        if (h[0] == b || h[1] == b || h[2] == b) {
+          neighbours[i][c] = g;
+          break;
+        }
+      }
+    }
+  }
+  return neighbours;
+}
+
+// Smoothed face normals choose the views: the voxel staircase of the silhouettes tilts single
+// facets, and views chosen per raw facet would shatter the charts. Starts from the mean of the
+// corners' (area-weighted) normals, already two rings wide, then averages over the
+// edge-neighbours kNormalSmoothingPasses times.
+void SmoothFaceNormals(const Mesh& mesh, Surface* s) {
+  const int nf = static_cast<int>(mesh.faces.size());
+  s->snx.resize(nf);
+  s->sny.resize(nf);
+  s->snz.resize(nf);
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    const Eigen::Vector3f n =
+        (s->vertex_normal[f[0]] + s->vertex_normal[f[1]] + s->vertex_normal[f[2]]).normalized();
+    s->snx[i] = n.x();
+    s->sny[i] = n.y();
+    s->snz[i] = n.z();
+  }
+  std::vector<float> tx(nf), ty(nf), tz(nf);
+  for (int pass = 0; pass < kNormalSmoothingPasses; ++pass) {
+    for (int i = 0; i < nf; ++i) {
+      float x = s->snx[i], y = s->sny[i], z = s->snz[i];
+      for (int nb : s->neighbours[i]) {
+        if (nb < 0) continue;
+        x += s->snx[nb];
+        y += s->sny[nb];
+        z += s->snz[nb];
+      }
+      const float length = std::sqrt(x * x + y * y + z * z);
+      const float inv = length > 0.0f ? 1.0f / length : 0.0f;
+      tx[i] = x * inv;
+      ty[i] = y * inv;
+      tz[i] = z * inv;
+    }
+    s->snx.swap(tx);
+    s->sny.swap(ty);
+    s->snz.swap(tz);
+  }
+}
+
+}  // namespace
+
+Surface MeasureSurface(Mesh* mesh, bool atlas) {
+  Surface s;
+  const int nv = static_cast<int>(mesh->vertices.size());
+  const int nf = static_cast<int>(mesh->faces.size());
+  const std::vector<Eigen::Vector3f>& vertices = mesh->vertices;
+  // Per-face unit normals and centroids (structure of arrays for the per-view sweeps; for the
+  // atlas only), vertex normals, and the mesh's scale.
+  const int atlas_faces = atlas ? nf : 0;
+  s.fnx.resize(atlas_faces);
+  s.fny.resize(atlas_faces);
+  s.fnz.resize(atlas_faces);
+  s.centroid.resize(atlas_faces);
+  std::vector<Eigen::Vector3f>& vertex_normal = s.vertex_normal;
+  vertex_normal.assign(nv, Eigen::Vector3f::Zero());
+  double edge_sum = 0.0;
+  Eigen::Vector3f lo = vertices[mesh->faces[0][0]];
+  Eigen::Vector3f hi = lo;
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Vector3i& f = mesh->faces[i];
+    const Eigen::Vector3f& a = vertices[f[0]];
+    const Eigen::Vector3f& b = vertices[f[1]];
+    const Eigen::Vector3f& c = vertices[f[2]];
+    const Eigen::Vector3f n = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) vertex_normal[f[k]] += n;
+    if (i < atlas_faces) {
+      const float length = n.norm();
+      const Eigen::Vector3f unit =
+          length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+      s.fnx[i] = unit.x();
+      s.fny[i] = unit.y();
+      s.fnz[i] = unit.z();
+      s.centroid[i] = (a + b + c) / 3.0f;
+    }
+    edge_sum += (b - a).norm();
+    lo = lo.cwiseMin(a);
+    hi = hi.cwiseMax(a);
+  }
+  // The mesh keeps them too (Mesh::normals: +z where they vanish), for the writers.
+  mesh->normals.resize(nv);
+  for (int i = 0; i < nv; ++i) {
+    Eigen::Vector3f& n = vertex_normal[i];
+    const float length = n.norm();
+    mesh->normals[i] = length > 0.0f && std::isfinite(length) ? Eigen::Vector3f(n / length)
+                                                              : Eigen::Vector3f::UnitZ();
+    n = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+  }
+  // Every vertex's box (lo and hi above take the faces' first corners only).
+  s.box_lo = vertices[0];
+  s.box_hi = s.box_lo;
+  for (const Eigen::Vector3f& x : vertices) {
+    s.box_lo = s.box_lo.cwiseMin(x);
+    s.box_hi = s.box_hi.cwiseMax(x);
+  }
+  s.mean_edge_mm = static_cast<float>(edge_sum / nf);
+  s.centre = 0.5f * (lo + hi);
+  s.radius = 0.5f * (hi - lo).norm();
+  if (atlas) {
+    s.neighbours = FaceNeighbours(*mesh);
+    SmoothFaceNormals(*mesh, &s);
+  }
+  return s;
+}
+
+VertexClusters ClusterVertices(const std::vector<Eigen::Vector3f>& vertices,
+                               const Surface& surface) {
+  constexpr int kClusterSide = 8;
+  const int nv = static_cast<int>(vertices.size());
+  const std::vector<Eigen::Vector3f>& vertex_normal = surface.vertex_normal;
+  VertexClusters out;
+  std::vector<Cluster>& clusters = out.clusters;
+  clusters.resize(std::size_t{kClusterSide} * kClusterSide * kClusterSide);
+  std::vector<float>&vx = out.x, &vy = out.y, &vz = out.z;
+  std::vector<float>&vnx = out.nx, &vny = out.ny, &vnz = out.nz;
+  for (std::vector<float>* a : {&vx, &vy, &vz, &vnx, &vny, &vnz}) a->resize(nv);
+  const Eigen::Vector3f scale =
+      kClusterSide * (surface.box_hi - surface.box_lo).cwiseMax(1e-6f).cwiseInverse();
+  std::vector<int> cluster_of(nv);
+  std::vector<int> start(clusters.size() + 1, 0);
+  for (int i = 0; i < nv; ++i) {
+    int cell[3];
+    for (int a = 0; a < 3; ++a) {
+      const float x = (vertices[i][a] - surface.box_lo[a]) * scale[a];
+      cell[a] = std::clamp(static_cast<int>(x >= 0.0f ? x : 0.0f), 0, kClusterSide - 1);
+    }
+    cluster_of[i] = (cell[2] * kClusterSide + cell[1]) * kClusterSide + cell[0];
+    ++start[cluster_of[i] + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (int i = 0; i < nv; ++i) {
+    const int at = fill[cluster_of[i]]++;
+    vx[at] = vertices[i].x();
+    vy[at] = vertices[i].y();
+    vz[at] = vertices[i].z();
+    vnx[at] = vertex_normal[i].x();
+    vny[at] = vertex_normal[i].y();
+    vnz[at] = vertex_normal[i].z();
+  }
+  for (std::size_t c = 0; c < clusters.size(); ++c) {
+    Cluster& cluster = clusters[c];
+    cluster.begin = start[c];
+    cluster.end = start[c + 1];
+    if (cluster.begin == cluster.end) continue;
+    cluster.lo = cluster.hi =
+        Eigen::Vector3f(vx[cluster.begin], vy[cluster.begin], vz[cluster.begin]);
+    bool unit_normals = true;
+    for (int i = cluster.begin; i < cluster.end; ++i) {
+      const Eigen::Vector3f x(vx[i], vy[i], vz[i]);
+      cluster.lo = cluster.lo.cwiseMin(x);
+      cluster.hi = cluster.hi.cwiseMax(x);
+      const Eigen::Vector3f n(vnx[i], vny[i], vnz[i]);
+      unit_normals = unit_normals && n.squaredNorm() > 0.5f;
+      cluster.axis += n;
+    }
+    if (!unit_normals || !(cluster.axis.norm() > 1e-3f)) continue;  // no cone
+    cluster.axis.normalize();
+    float min_cos = 1.0f;
+    for (int i = cluster.begin; i < cluster.end; ++i) {
+      min_cos = std::min(min_cos, cluster.axis.dot(Eigen::Vector3f(vnx[i], vny[i], vnz[i])));
+    }
+    cluster.half_angle = std::acos(std::clamp(min_cos, -1.0f, 1.0f));
+  }
+  return out;
+}
+
+}  // namespace revolve::reconstruct::texture_internal

@@ -1,0 +1,155 @@
+#include <numeric>
+
+#include "reconstruct/texture/texture_internal.h"
+
+namespace revolve::reconstruct::texture_internal {
+
+ViewRanking::ViewRanking(const std::vector<ViewGeometry>& geometry,
+                         const std::vector<cv::Mat>& images, const Surface& surface, float cos_min)
+    : cos_min_(cos_min) {
+  const int nviews = static_cast<int>(geometry.size());
+  direction_.resize(nviews);
+  margin_.assign(nviews, 0.0f);
+  for (int k = 0; k < nviews; ++k) {
+    const ViewGeometry& g = geometry[k];
+    direction_[k] = g.ToCamera(surface.centre);
+    if (!g.affine) {
+      const float distance = (g.centre - surface.centre).norm();
+      margin_[k] =
+          distance > surface.radius ? std::min(1.0f, 1.05f * surface.radius / distance) : 2.0f;
+    }
+  }
+  bins_.resize(std::size_t{6} * kBins * kBins);
+  std::vector<int> used_views;  // those with an image, and their directions
+  std::vector<float> used_x, used_y, used_z;
+  for (int k = 0; k < nviews; ++k) {
+    if (images[k].empty()) continue;
+    used_views.push_back(k);
+    used_x.push_back(direction_[k].x());
+    used_y.push_back(direction_[k].y());
+    used_z.push_back(direction_[k].z());
+  }
+  std::vector<float> used_score(used_views.size());
+  for (int face = 0; face < 6; ++face) {
+    for (int bt = 0; bt < kBins; ++bt) {
+      for (int bs = 0; bs < kBins; ++bs) {
+        const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
+        const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
+        Eigen::Vector3f n;
+        const float sign = face & 1 ? -1.0f : 1.0f;
+        switch (face / 2) {
+          case 0:
+            n = Eigen::Vector3f(sign, a, b);
+            break;
+          case 1:
+            n = Eigen::Vector3f(a, sign, b);
+            break;
+          default:
+            n = Eigen::Vector3f(a, b, sign);
+            break;
+        }
+        n.normalize();
+        // The scores first (one loop the compiler vectorises; the products summed in the order
+        // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
+        for (std::size_t j = 0; j < used_views.size(); ++j) {
+          used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
+        }
+        Candidates c;
+        for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
+        bins_[(face * kBins + bt) * kBins + bs] = c;
+      }
+    }
+  }
+}
+
+int ViewRanking::BinOf(float x, float y, float z) {
+  const float ax = std::abs(x), ay = std::abs(y), az = std::abs(z);
+  int face;
+  float a, b, m;
+  if (ax >= ay && ax >= az) {
+    face = x >= 0.0f ? 0 : 1, a = y, b = z, m = ax;
+  } else if (ay >= az) {
+    face = y >= 0.0f ? 2 : 3, a = x, b = z, m = ay;
+  } else {
+    face = z >= 0.0f ? 4 : 5, a = x, b = y, m = az;
+  }
+  const float inv = m > 0.0f ? 0.5f * kBins / m : 0.0f;
+  const int bs = std::clamp(static_cast<int>((a + m) * inv), 0, kBins - 1);
+  const int bt = std::clamp(static_cast<int>((b + m) * inv), 0, kBins - 1);
+  return (face * kBins + bt) * kBins + bs;
+}
+
+Candidates ViewRanking::Rank(float x, float y, float z) const {
+  Candidates c;
+  if (x == 0.0f && y == 0.0f && z == 0.0f) return c;
+  const Candidates& bin = bins_[BinOf(x, y, z)];
+  for (int slot = 0; slot < kCandidates; ++slot) {
+    const int k = bin.view[slot];
+    if (k < 0) break;
+    const Eigen::Vector3f& d = direction_[k];
+    const float score = x * d.x() + y * d.y() + z * d.z();
+    // Above -2 (cos_min - margin >= cos 85 deg - 2), so it takes a slot.
+    if (score < cos_min_ - margin_[k]) continue;
+    c.Insert(score, k);
+  }
+  return c;
+}
+
+std::vector<Candidates> ViewRanking::Rank(int count, const float* x, const float* y,
+                                          const float* z) const {
+  std::vector<Candidates> out(count);
+  for (int i = 0; i < count; ++i) out[i] = Rank(x[i], y[i], z[i]);
+  return out;
+}
+
+PerView<std::int64_t> ViewRanking::FacesPerView(
+    const std::vector<Candidates>& face_candidates) const {
+  const int nviews = static_cast<int>(direction_.size());
+  PerView<std::int64_t> out;
+  std::vector<int>& face_start = out.start;
+  face_start.assign(nviews + 1, 0);
+  for (const Candidates& c : face_candidates) {
+    for (int s = 0; s < kCandidates; ++s) {
+      if (c.view[s] >= 0) ++face_start[c.view[s] + 1];
+    }
+  }
+  std::partial_sum(face_start.begin(), face_start.end(), face_start.begin());
+  out.entries.resize(face_start.back());
+  std::vector<int> fill(face_start.begin(), face_start.end() - 1);
+  for (std::size_t i = 0; i < face_candidates.size(); ++i) {
+    for (int s = 0; s < kCandidates; ++s) {
+      const int k = face_candidates[i].view[s];
+      if (k >= 0) out.entries[fill[k]++] = static_cast<std::int64_t>(i) * kCandidates + s;
+    }
+  }
+  return out;
+}
+
+PerView<int> ViewRanking::VerticesPerView(const std::vector<Eigen::Vector3f>& vertex_normal,
+                                          bool wanted) const {
+  const int nviews = static_cast<int>(direction_.size());
+  const int nv = static_cast<int>(vertex_normal.size());
+  PerView<int> out;
+  std::vector<int>& vertex_start = out.start;
+  vertex_start.assign(nviews + 1, 0);
+  if (!wanted) return out;
+  std::vector<std::array<std::int16_t, kCandidates>> ranked(nv);
+  for (int vi = 0; vi < nv; ++vi) {
+    const Eigen::Vector3f& n = vertex_normal[vi];
+    ranked[vi] = Rank(n.x(), n.y(), n.z()).view;
+    for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
+      ++vertex_start[ranked[vi][slot] + 1];
+    }
+  }
+  std::partial_sum(vertex_start.begin(), vertex_start.end(), vertex_start.begin());
+  out.entries.resize(vertex_start.back());
+  std::vector<int> fill(vertex_start.begin(), vertex_start.end() - 1);
+  for (int vi = 0; vi < nv; ++vi) {
+    for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
+      out.entries[fill[ranked[vi][slot]]++] = vi;
+    }
+  }
+  return out;
+}
+
+}  // namespace revolve::reconstruct::texture_internal
