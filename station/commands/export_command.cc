@@ -10,8 +10,8 @@
 
 #include "base/atomic_file.h"
 #include "reconstruct/cameras/camera_export.h"
-#include "station/saved_stops.h"
 #include "station/exit_codes.h"
+#include "station/saved_stops.h"
 #include "station/scan_folder.h"
 #include "station/scan_geometry.h"
 #include "station/station_config.h"

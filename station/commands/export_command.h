@@ -24,11 +24,11 @@ struct ExportOptions {
   std::filesystem::path out;
 };
 
-// Returns station's exit codes (station/exit_codes.h): kExitOk; kExitUsage for an unknown format or no
-// --out; kExitConfig when the scan's scan.toml or calibration.toml cannot be used; kExitFailed
-// when the folder is not a scan, holds no readable stop, its cameras are not metric pinhole
-// cameras (a thesis-mode or orthographic scan: calibrate the rig first), or a file cannot be
-// written. Errors name the file or option at fault.
+// Returns station's exit codes (station/exit_codes.h): kExitOk; kExitUsage for an unknown format
+// or no --out; kExitConfig when the scan's scan.toml or calibration.toml cannot be used;
+// kExitFailed when the folder is not a scan, holds no readable stop, its cameras are not metric
+// pinhole cameras (a thesis-mode or orthographic scan: calibrate the rig first), or a file cannot
+// be written. Errors name the file or option at fault.
 int RunExportCommand(const ExportOptions& options, std::ostream& out, std::ostream& err);
 
 }  // namespace revolve::station
