@@ -44,6 +44,7 @@ Expected<SyntheticOptions> ParseSynthetic(const config::Section& section) {
   r.Integer("backdrop_grey", o.backdrop_grey, kBackdropGreyRange.min, kBackdropGreyRange.max);
   r.Numbers("backdrop_bgr", o.backdrop_bgr, 0.0, 255.0, 0, 3);
   r.Number("object_albedo", o.object_albedo, kAlbedoRange.min, kAlbedoRange.max);
+  r.String("texture", o.texture, {"checker", "speckle"});
   r.Number("plate_radius_mm", o.plate_radius_mm, kPlateMmRange.min, kPlateMmRange.max);
   r.Number("plate_thickness_mm", o.plate_thickness_mm, kPlateMmRange.min, kPlateMmRange.max);
   r.Numbers("plate_top_bgr", o.plate_top_bgr, 0.0, 255.0, 0, 3);

@@ -127,7 +127,10 @@ struct SyntheticOptions {
   int backdrop_grey = 20;
   std::vector<double> backdrop_bgr;  // B G R 0..255; empty: backdrop_grey in every channel
   double object_albedo = 1.0;        // texture brightness, (0, 1]
-  double plate_radius_mm = 0.0;      // 0: no plate
+  // checker | speckle: the checker alone, or with fine blotches over it (features for
+  // photogrammetry: SIFT finds few on flat checker cells).
+  std::string texture = "checker";
+  double plate_radius_mm = 0.0;  // 0: no plate
   double plate_thickness_mm = 8.0;
   std::vector<double> plate_top_bgr;  // empty: the backdrop's colour
   std::vector<double> plate_rim_bgr = {150.0, 150.0, 150.0};

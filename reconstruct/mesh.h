@@ -12,6 +12,20 @@ namespace revolve::reconstruct {
 
 using Color = Eigen::Matrix<std::uint8_t, 3, 1>;  // RGB
 
+// View-dependent texture (the thesis's 4.3.4, made by the meridian method): each face is textured
+// straight from one view's image, at its vertices' projections into that image. `images` are the
+// frames used (CV_8UC3 BGR; copies share their pixels); `uvs` are points on them in VRML's
+// convention: s from the left edge, t from the BOTTOM edge, both in [0, 1] of the image's size.
+// `uv_faces` and `face_image` are empty or one per face: corner c of face f samples
+// images[face_image[f]] at uvs[uv_faces[f][c]]; face_image -1 marks an untextured face (its
+// uv_faces entry is unused).
+struct ViewTexture {
+  std::vector<cv::Mat> images;
+  std::vector<Eigen::Vector2f> uvs;
+  std::vector<Eigen::Vector3i> uv_faces;
+  std::vector<int> face_image;
+};
+
 struct Mesh {
   std::vector<Eigen::Vector3f> vertices;
   // Counter-clockwise seen from outside (normals point outward).
@@ -34,10 +48,19 @@ struct Mesh {
   std::vector<Eigen::Vector3i> uv_faces;
   cv::Mat texture;
 
+  // The view-dependent texture the VRML writer writes (reconstruct/meridian/meridian_vrml.h);
+  // the other writers use the atlas above. Whoever changes the faces clears it.
+  ViewTexture view_texture;
+
   bool HasColors() const { return !colors.empty() && colors.size() == vertices.size(); }
   bool HasNormals() const { return !normals.empty() && normals.size() == vertices.size(); }
   bool HasTexture() const {
     return !texture.empty() && !uvs.empty() && !faces.empty() && uv_faces.size() == faces.size();
+  }
+  bool HasViewTexture() const {
+    return !view_texture.images.empty() && !faces.empty() &&
+           view_texture.face_image.size() == faces.size() &&
+           view_texture.uv_faces.size() == faces.size();
   }
 };
 

@@ -197,7 +197,8 @@ Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& option
                                    options.meridian_row_step_px));
     }
     return std::make_unique<MeridianReconstructor>(
-        MeridianOptions{options.meridian_row_step_px, options.meridian_both_sides});
+        MeridianOptions{options.meridian_row_step_px, options.meridian_both_sides,
+                        options.texture ? options.texture_size_px : 0});
   }
   if (options.method != "hull") {
     return MakeError(ErrorCode::kBadInput,

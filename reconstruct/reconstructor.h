@@ -28,7 +28,8 @@ struct ReconstructOptions {
   std::vector<std::string> formats = {"ply", "obj", "stl", "glb", "wrl"};
   // hull: colour from the frames (reconstruct/texture/texture.h): vertex colours always, and a
   // texture atlas (for OBJ and glTF) when `texture`; texture_size_px bounds the atlas's side
-  // (64..16384).
+  // (64..16384). meridian: the view-dependent texture always (VRML), packed into an atlas (OBJ,
+  // glTF) when `texture`.
   bool texture = true;
   int texture_size_px = 4096;
   // hull: cut the model at the table plane (z = 0) and close it there with a flat face, so it

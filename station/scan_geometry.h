@@ -85,9 +85,13 @@ class ScanGeometry {
   // with a calibration compared with the calibrated axis's image line).
   nlohmann::json ReportJson() const;
 
+  // The view of the stop at plate angle `angle_deg` in a width x height frame: the calibrated
+  // rig's or the camera's pinhole view (object frame, mm); in thesis mode the orthographic view
+  // with the axis line found in Finish (the middle column before it).
+  View ViewAt(double angle_deg, int width_px, int height_px) const;
+
  private:
   ScanGeometry() = default;
-  View ViewAt(double angle_deg, int width_px, int height_px) const;
   void FitSilhouetteAxis();
 
   GeometrySource source_ = GeometrySource::kThesis;

@@ -34,11 +34,13 @@ struct Shader {
   const Scene& scene;
   Eigen::Vector3d light;  // object frame
   float albedo_scale;
+  bool speckle;
 
   Eigen::Vector3f Shade(const RayHit& hit) const {
     const Eigen::Vector3d to_light = (light - hit.point).normalized();
     const double lambert = std::max(0.0, hit.normal.dot(to_light));
-    const float gain = static_cast<float>(255.0 * (kAmbient + kDiffuse * lambert)) * albedo_scale;
+    const float gain = static_cast<float>(255.0 * (kAmbient + kDiffuse * lambert)) * albedo_scale *
+                       (speckle ? SpeckleShade(hit.point) : 1.0f);
     return (SurfaceAlbedo(scene, hit.point) * gain).cwiseMin(255.0f);
   }
 };
@@ -273,6 +275,35 @@ Eigen::Vector3f SurfaceAlbedo(const Scene& scene, const Eigen::Vector3d& point) 
   return Eigen::Vector3f(c[0], c[1], c[2]);
 }
 
+namespace {
+
+// Value noise: a hashed value in [0, 1] at each lattice point, trilinear in between.
+double ValueNoise(const Eigen::Vector3d& point, double cell_mm, std::uint64_t salt) {
+  const Eigen::Vector3d q = point / cell_mm;
+  const Eigen::Vector3d base = q.array().floor();
+  const Eigen::Vector3d f = q - base;
+  double sum = 0.0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
+    std::uint64_t h = salt;
+    h = SplitMix64(h ^ static_cast<std::uint64_t>(static_cast<std::int64_t>(base.x()) + dx));
+    h = SplitMix64(h ^ static_cast<std::uint64_t>(static_cast<std::int64_t>(base.y()) + dy));
+    h = SplitMix64(h ^ static_cast<std::uint64_t>(static_cast<std::int64_t>(base.z()) + dz));
+    const double value = static_cast<double>(h >> 11) * 0x1.0p-53;
+    const double w =
+        (dx ? f.x() : 1.0 - f.x()) * (dy ? f.y() : 1.0 - f.y()) * (dz ? f.z() : 1.0 - f.z());
+    sum += w * value;
+  }
+  return sum;
+}
+
+}  // namespace
+
+float SpeckleShade(const Eigen::Vector3d& point) {
+  const double noise = 0.6 * ValueNoise(point, 1.5, 0x5EC1) + 0.4 * ValueNoise(point, 4.0, 0xB10B);
+  return static_cast<float>(0.6 + 0.4 * noise);
+}
+
 std::uint64_t NoiseSeed(std::uint64_t seed, std::uint64_t sequence) {
   return SplitMix64(SplitMix64(seed) ^ sequence);
 }
@@ -294,7 +325,7 @@ RenderOutput RenderScene(const Scene& scene, const SimProjection& projection,
   const Shader shader{scene,
                       object_from_cam * Eigen::Vector3d(kLightRight * light_distance,
                                                         kLightDown * light_distance, 0.0),
-                      settings.object_albedo};
+                      settings.object_albedo, settings.speckle};
   const PixelRays rays(projection, plate_angle_deg);
   const Eigen::Matrix3d table_from_object = TableFromObject(plate_angle_deg).linear();
 

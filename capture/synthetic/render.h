@@ -36,6 +36,7 @@ struct Stage {
 struct RenderSettings {
   Eigen::Vector3f backdrop_bgr{20.0f, 20.0f, 20.0f};  // 0..255
   float object_albedo = 1.0f;  // scales the texture's albedo (darker objects for a light backdrop)
+  bool speckle = false;        // the texture's albedo times SpeckleShade
   double noise_sigma = 3.0;    // standard deviation of the noise added to every channel
   double blur_sigma_px = 0.0;  // Gaussian blur of the optics (before the noise); 0: none
   std::uint64_t seed = 1;      // with the frame's sequence number, seeds the noise
@@ -83,6 +84,11 @@ inline constexpr float kMarkerBgr[3] = {1.0f, 0.25f, 1.0f};
 
 // Albedo (B, G, R in [0, 1]) of the surface at an object-frame point on it.
 Eigen::Vector3f SurfaceAlbedo(const Scene& scene, const Eigen::Vector3d& point);
+
+// Fine blotches fixed to the object, for photogrammetry's feature detectors: a factor in
+// [0.6, 1] from two octaves of value noise (trilinear between hashed values on lattices of 1.5
+// and 4 mm) at an object-frame point.
+float SpeckleShade(const Eigen::Vector3d& point);
 
 // True on the marker patch.
 bool InMarker(const Scene& scene, const Eigen::Vector3d& point);

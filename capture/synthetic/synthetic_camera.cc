@@ -91,6 +91,7 @@ RenderSettings RenderSettingsFromOptions(const SyntheticOptions& options) {
   const float grey = static_cast<float>(options.backdrop_grey);
   settings.backdrop_bgr = Colour(options.backdrop_bgr, Eigen::Vector3f(grey, grey, grey));
   settings.object_albedo = static_cast<float>(options.object_albedo);
+  settings.speckle = options.texture == "speckle";
   settings.noise_sigma = options.noise_sigma;
   settings.blur_sigma_px = options.blur_sigma_px;
   settings.seed = options.seed;

@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 
 #include "reconstruct/io/writer_support.h"
+#include "reconstruct/meridian/meridian_vrml.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -398,6 +399,13 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
     Expected<void> result;
     if (format == "ply") {
       result = WritePly(mesh, path);
+    } else if (format == "wrl" && mesh.HasViewTexture()) {
+      // The view-dependent texture's images (<basename>_texNN.jpg), then the .wrl.
+      Expected<std::vector<fs::path>> files = WriteTexturedVrml(mesh, path, 0.001);
+      if (!files) {
+        return std::unexpected(files.error());
+      }
+      written.insert(written.end(), files->begin(), files->end() - 1);
     } else if (format == "wrl") {
       result = WriteVrml(mesh, path);
     } else if (format == "stl") {

@@ -69,7 +69,9 @@ bool IsModelFormat(std::string_view format);
 inline constexpr std::string_view kModelFormats[] = {"ply", "obj", "stl", "glb", "wrl"};
 
 // Writes `dir`/`basename`.<format> for each format in kModelFormats (duplicates written once;
-// "obj" also writes .mtl and, with a texture, .png); returns the paths written, in order. `dir`
+// "obj" also writes .mtl and, with a texture, .png; "wrl" of a mesh with a view-dependent texture
+// is WriteTexturedVrml's (reconstruct/meridian/meridian_vrml.h: <basename>_texNN.jpg beside it,
+// millimetres scaled to metres), else WriteVrml's); returns the paths written, in order. `dir`
 // must exist. The texture is PNG-encoded once for OBJ and glTF. Errors: bad_input for an unknown
 // format (nothing written), io naming the file otherwise (files written before the failing one
 // stay).

@@ -10,6 +10,7 @@
 
 #include "base/log.h"
 #include "reconstruct/cameras/views.h"
+#include "reconstruct/texture/view_atlas.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -283,13 +284,13 @@ std::vector<int> MeridianReconstructor::BuildMesh(const std::vector<const Meridi
   return face_strip;
 }
 
-void MeridianReconstructor::TextureStrips(const std::vector<int>& face_strip,
-                                          MeridianModel* model) const {
+Expected<void> MeridianReconstructor::TextureStrips(const std::vector<int>& face_strip,
+                                                    MeridianModel* model) const {
   // Texture: per strip (and cap) the view facing it most squarely.
   const bool any_image =
       std::any_of(views_.begin(), views_.end(), [](const ViewData& v) { return !v.image.empty(); });
-  if (!any_image) return;
-  const Mesh& mesh = model->mesh;
+  if (!any_image) return {};
+  Mesh& mesh = model->mesh;
   const int meridian_count = model->meridian_count;
   const int row_count = model->row_count;
   const int groups = meridian_count + 2;
@@ -323,9 +324,9 @@ void MeridianReconstructor::TextureStrips(const std::vector<int>& face_strip,
       }
     }
     if (group_view[gi] >= 0 && texture_of_view.count(group_view[gi]) == 0) {
-      const int t = static_cast<int>(model->textures.size());
+      const int t = static_cast<int>(mesh.view_texture.images.size());
       texture_of_view[group_view[gi]] = t;
-      model->textures.push_back(views_[static_cast<std::size_t>(group_view[gi])].image);
+      mesh.view_texture.images.push_back(views_[static_cast<std::size_t>(group_view[gi])].image);
     }
   }
   // Texture coordinates: one per (group, vertex), the vertex projected into the group's view.
@@ -339,27 +340,34 @@ void MeridianReconstructor::TextureStrips(const std::vector<int>& face_strip,
     (void)view.Project(mesh.vertices[vertex_index].cast<double>(), &pixel);
     const double s = std::clamp((pixel.x() + 0.5) / view.width_px, 0.0, 1.0);
     const double t = std::clamp(1.0 - (pixel.y() + 0.5) / view.height_px, 0.0, 1.0);
-    const int index = static_cast<int>(model->uv.size());
-    model->uv.emplace_back(static_cast<float>(s), static_cast<float>(t));
+    const int index = static_cast<int>(mesh.view_texture.uvs.size());
+    mesh.view_texture.uvs.emplace_back(static_cast<float>(s), static_cast<float>(t));
     uv_index.emplace(key, index);
     return index;
   };
-  model->face_uv.resize(mesh.faces.size(), Eigen::Vector3i::Zero());
-  model->face_texture.resize(mesh.faces.size(), -1);
+  mesh.view_texture.uv_faces.resize(mesh.faces.size(), Eigen::Vector3i::Zero());
+  mesh.view_texture.face_image.resize(mesh.faces.size(), -1);
   for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
     const int g = face_strip[f];
     const int view = group_view[static_cast<std::size_t>(g)];
     if (view < 0) continue;
-    model->face_texture[f] = texture_of_view[view];
-    for (int k = 0; k < 3; ++k) model->face_uv[f][k] = uv_of(g, mesh.faces[f][k]);
+    mesh.view_texture.face_image[f] = texture_of_view[view];
+    for (int k = 0; k < 3; ++k) mesh.view_texture.uv_faces[f][k] = uv_of(g, mesh.faces[f][k]);
   }
-  if (model->uv.empty()) model->uv.emplace_back(0.0f, 0.0f);  // untextured faces point at it
+  // Untextured faces point at it.
+  if (mesh.view_texture.uvs.empty()) mesh.view_texture.uvs.emplace_back(0.0f, 0.0f);
+  if (options_.atlas_size_px > 0) {
+    if (Expected<void> atlas = AtlasFromViewTexture(&mesh, options_.atlas_size_px); !atlas) {
+      return std::unexpected(atlas.error());
+    }
+  }
   Logger("reconstruct")
       ->info(
           "meridian: {} views, {} meridians x {} rows (every {} px), {} triangles, {} "
-          "texture image(s)",
+          "texture image(s), atlas {}x{}",
           views_.size(), meridian_count, row_count, options_.row_step_px, mesh.faces.size(),
-          model->textures.size());
+          mesh.view_texture.images.size(), mesh.texture.cols, mesh.texture.rows);
+  return {};
 }
 
 Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
@@ -371,7 +379,9 @@ Expected<MeridianModel> MeridianReconstructor::FinishModel() const {
   model.meridian_count = static_cast<int>(chosen->size());
   model.row_count = static_cast<int>(rows->size());
   const std::vector<int> face_strip = BuildMesh(*chosen, *rows, &model);
-  TextureStrips(face_strip, &model);
+  if (Expected<void> textured = TextureStrips(face_strip, &model); !textured) {
+    return std::unexpected(textured.error());
+  }
   return model;
 }
 

@@ -50,23 +50,20 @@ namespace revolve::reconstruct {
 struct MeridianOptions {
   int row_step_px = 9;      // h_RANGE: feature points on every k-th image row, 1..256
   bool both_sides = false;  // also take the rightmost pixel, as the meridian at theta + 180 deg
+  // Largest side of the texture atlas (64..16384); 0: no atlas (the view-dependent texture only).
+  int atlas_size_px = 4096;
 };
 
-// The textured result of the meridian method.
+// The textured result of the meridian method: the mesh with its view-dependent texture
+// (mesh.view_texture: only the images used, untextured faces -1) and, when
+// MeridianOptions::atlas_size_px > 0, the same texture packed into an atlas (mesh.texture, uvs,
+// uv_faces: reconstruct/texture/view_atlas.h) for the formats that hold one image (OBJ, glTF).
 struct MeridianModel {
   Mesh mesh;
-  // Texture coordinates (s right, t up, both 0..1 over the image: VRML's convention).
-  std::vector<Eigen::Vector2f> uv;
-  // Per face: indices into `uv` (VRML texCoordIndex); empty when there is no texture at all.
-  std::vector<Eigen::Vector3i> face_uv;
-  // Per face: index into `textures`, -1 for an untextured face; empty when there is no texture.
-  std::vector<int> face_texture;
-  // The images the strips are textured from (CV_8UC3 BGR), only those used.
-  std::vector<cv::Mat> textures;
   int meridian_count = 0;
   int row_count = 0;
 
-  bool HasTexture() const { return !textures.empty() && face_texture.size() == mesh.faces.size(); }
+  bool HasTexture() const { return mesh.HasViewTexture(); }
 };
 
 class MeridianReconstructor final : public Reconstructor {
@@ -80,7 +77,7 @@ class MeridianReconstructor final : public Reconstructor {
   // (the axis does not cross the image rows), or a non-finite projection.
   Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) override;
 
-  // FinishModel().mesh.
+  // FinishModel().mesh (with its view-dependent texture and atlas).
   Expected<Mesh> Finish() override;
 
   // The mesh with its texture. Errors: bad_input when fewer than 3 distinct meridians were
@@ -116,8 +113,9 @@ class MeridianReconstructor final : public Reconstructor {
   static std::vector<int> BuildMesh(const std::vector<const Meridian*>& chosen,
                                     const std::vector<int>& rows, MeridianModel* model);
   // The texture (when any view has an image): per strip and cap the view facing it most
-  // squarely, its image, and each face's uvs in it.
-  void TextureStrips(const std::vector<int>& face_strip, MeridianModel* model) const;
+  // squarely, its image, and each face's uvs in it (mesh.view_texture), then its atlas when
+  // atlas_size_px > 0. Errors: those of AtlasFromViewTexture.
+  Expected<void> TextureStrips(const std::vector<int>& face_strip, MeridianModel* model) const;
 
   MeridianOptions options_;
   int width_px_ = 0;

@@ -13,9 +13,8 @@ namespace {
 
 constexpr int kJpegQuality = 92;
 
-void WriteShape(std::string& out, const MeridianModel& model, int texture,
-                const std::string& texture_url, bool define_coords,
-                const std::string& coords_name) {
+void WriteShape(std::string& out, const Mesh& mesh, int texture, const std::string& texture_url,
+                bool define_coords, const std::string& coords_name) {
   out += "    Shape {\n      appearance Appearance {\n";
   out += "        material Material { diffuseColor 0.8 0.8 0.8 }\n";
   if (texture >= 0) {
@@ -24,7 +23,7 @@ void WriteShape(std::string& out, const MeridianModel& model, int texture,
   out += "      }\n      geometry IndexedFaceSet {\n        solid TRUE\n";
   if (define_coords) {
     out += fmt::format("        coord DEF {} Coordinate {{\n          point [\n", coords_name);
-    for (const Eigen::Vector3f& p : model.mesh.vertices) {
+    for (const Eigen::Vector3f& p : mesh.vertices) {
       out += fmt::format("            {:.7g} {:.7g} {:.7g},\n", p.x(), p.y(), p.z());
     }
     out += "          ]\n        }\n";
@@ -32,22 +31,22 @@ void WriteShape(std::string& out, const MeridianModel& model, int texture,
     out += fmt::format("        coord USE {}\n", coords_name);
   }
   out += "        coordIndex [\n";
-  const bool textured = texture >= 0 && model.HasTexture();
-  for (std::size_t f = 0; f < model.mesh.faces.size(); ++f) {
-    const int face_texture = model.HasTexture() ? model.face_texture[f] : -1;
+  const bool textured = texture >= 0 && mesh.HasViewTexture();
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const int face_texture = mesh.HasViewTexture() ? mesh.view_texture.face_image[f] : -1;
     if (face_texture != texture) continue;
-    const Eigen::Vector3i& face = model.mesh.faces[f];
+    const Eigen::Vector3i& face = mesh.faces[f];
     out += fmt::format("          {}, {}, {}, -1,\n", face[0], face[1], face[2]);
   }
   out += "        ]\n";
   if (textured) {
     // Only the texture coordinates this Shape uses, renumbered.
-    std::vector<int> local(model.uv.size(), -1);
+    std::vector<int> local(mesh.view_texture.uvs.size(), -1);
     std::vector<int> order;
-    for (std::size_t f = 0; f < model.mesh.faces.size(); ++f) {
-      if (model.face_texture[f] != texture) continue;
+    for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+      if (mesh.view_texture.face_image[f] != texture) continue;
       for (int k = 0; k < 3; ++k) {
-        const int i = model.face_uv[f][k];
+        const int i = mesh.view_texture.uv_faces[f][k];
         if (local[static_cast<std::size_t>(i)] < 0) {
           local[static_cast<std::size_t>(i)] = static_cast<int>(order.size());
           order.push_back(i);
@@ -56,13 +55,13 @@ void WriteShape(std::string& out, const MeridianModel& model, int texture,
     }
     out += "        texCoord TextureCoordinate {\n          point [\n";
     for (const int i : order) {
-      const Eigen::Vector2f& uv = model.uv[static_cast<std::size_t>(i)];
+      const Eigen::Vector2f& uv = mesh.view_texture.uvs[static_cast<std::size_t>(i)];
       out += fmt::format("            {:.6f} {:.6f},\n", uv.x(), uv.y());
     }
     out += "          ]\n        }\n        texCoordIndex [\n";
-    for (std::size_t f = 0; f < model.mesh.faces.size(); ++f) {
-      if (model.face_texture[f] != texture) continue;
-      const Eigen::Vector3i& t = model.face_uv[f];
+    for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+      if (mesh.view_texture.face_image[f] != texture) continue;
+      const Eigen::Vector3i& t = mesh.view_texture.uv_faces[f];
       out +=
           fmt::format("          {}, {}, {}, -1,\n", local[static_cast<std::size_t>(t[0])],
                       local[static_cast<std::size_t>(t[1])], local[static_cast<std::size_t>(t[2])]);
@@ -74,17 +73,17 @@ void WriteShape(std::string& out, const MeridianModel& model, int texture,
 
 }  // namespace
 
-Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const MeridianModel& model,
+Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const Mesh& mesh,
                                                                const std::filesystem::path& path,
                                                                double metres_per_unit) {
   std::vector<std::filesystem::path> written;
   const std::string stem = path.stem().string();
   std::vector<std::string> urls;
-  if (model.HasTexture()) {
-    for (std::size_t t = 0; t < model.textures.size(); ++t) {
+  if (mesh.HasViewTexture()) {
+    for (std::size_t t = 0; t < mesh.view_texture.images.size(); ++t) {
       const std::string name = fmt::format("{}_tex{:02d}.jpg", stem, t);
       std::vector<std::uint8_t> bytes;
-      if (!cv::imencode(".jpg", model.textures[t], bytes,
+      if (!cv::imencode(".jpg", mesh.view_texture.images[t], bytes,
                         {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) {
         return MakeError(ErrorCode::kIo, fmt::format("{}: the texture image cannot be encoded",
                                                      (path.parent_path() / name).string()));
@@ -107,13 +106,14 @@ Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const MeridianMod
   const std::string coords_name = "model_coords";
   bool defined = false;
   for (std::size_t t = 0; t < urls.size(); ++t) {
-    WriteShape(out, model, static_cast<int>(t), urls[t], !defined, coords_name);
+    WriteShape(out, mesh, static_cast<int>(t), urls[t], !defined, coords_name);
     defined = true;
   }
   const bool any_untextured =
-      !model.HasTexture() || std::find(model.face_texture.begin(), model.face_texture.end(), -1) !=
-                                 model.face_texture.end();
-  if (any_untextured) WriteShape(out, model, -1, "", !defined, coords_name);
+      !mesh.HasViewTexture() ||
+      std::find(mesh.view_texture.face_image.begin(), mesh.view_texture.face_image.end(), -1) !=
+          mesh.view_texture.face_image.end();
+  if (any_untextured) WriteShape(out, mesh, -1, "", !defined, coords_name);
   out += "  ]\n}\nNavigationInfo {\n  type \"EXAMINE\"\n}\n";
   if (Expected<void> w = WriteFileAtomically(path, std::string_view(out)); !w) {
     return std::unexpected(w.error());

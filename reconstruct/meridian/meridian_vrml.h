@@ -1,6 +1,9 @@
-// VRML 2.0 with texture, as the thesis wrote it (2.4, Appendix B: Shape, Appearance with Material
-// and ImageTexture, IndexedFaceSet with Coordinate, TextureCoordinate, coordIndex, texCoordIndex;
-// NavigationInfo), for the meridian method's MeridianModel.
+// VRML 2.0 with view-dependent texture, as the thesis wrote it (2.4, Appendix B: Shape,
+// Appearance with Material and ImageTexture, IndexedFaceSet with Coordinate, TextureCoordinate,
+// coordIndex, texCoordIndex; NavigationInfo), for a mesh with a view-dependent texture
+// (Mesh::view_texture, made by the meridian method). WriteModel (reconstruct/io/mesh_io.h)
+// writes "wrl" with it for such a mesh, so every path (revolve scan, revolve reconstruct SCAN_DIR
+// and --images) writes the same textured VRML.
 //
 // Layout of `path` (e.g. model.wrl) and its images:
 //   #VRML V2.0 utf8
@@ -30,13 +33,14 @@
 #include <vector>
 
 #include "base/error.h"
-#include "reconstruct/meridian/meridian.h"
+#include "reconstruct/mesh.h"
 
 namespace revolve::reconstruct {
 
-// Writes the model (see the file comment) and returns the files written (.wrl last). A model
-// without texture is written as one untextured Shape. Errors: io / not_found naming the file.
-Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const MeridianModel& model,
+// Writes the mesh (see the file comment) and returns the files written (.wrl last). A mesh
+// without a view-dependent texture is written as one untextured Shape. Errors: io / not_found
+// naming the file.
+Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const Mesh& mesh,
                                                                const std::filesystem::path& path,
                                                                double metres_per_unit);
 

@@ -9,6 +9,7 @@
 #include "station/apps/guarded_main.h"
 #include "station/commands/calibrate_commands.h"
 #include "station/commands/camera_commands.h"
+#include "station/commands/export_command.h"
 #include "station/commands/scan_command.h"
 #include "station/commands/station_commands.h"
 #include "station/commands/turntable_commands.h"
@@ -55,6 +56,16 @@ int Main(int argc, char** argv) {
   scan->add_option("--recipe", scan_options.recipe,
                    "Recipe of the config (default: [station] recipe)");
   auto camera_commands = revolve::station::AddCameraCommands(app);
+
+  revolve::station::ExportOptions export_options;
+  CLI::App* export_command = app.add_subcommand(
+      "export", "Write a scan as a COLMAP text workspace or a nerfstudio transforms.json");
+  export_command->add_option("SCAN_DIR", export_options.scan_dir, "The scan folder")->required();
+  export_command
+      ->add_option("--format", export_options.format,
+                   "colmap (images/, masks/, sparse/0/*.txt) or nerfstudio (transforms.json)")
+      ->capture_default_str();
+  export_command->add_option("--out", export_options.out, "The folder to write")->required();
   auto calibrate_commands = revolve::station::AddCalibrateCommands(app);
 
   try {
@@ -69,6 +80,9 @@ int Main(int argc, char** argv) {
   if (auto code = camera_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (auto code = calibrate_commands->Run(signals.token(), std::cin, std::cout, std::cerr)) {
     return *code;
+  }
+  if (export_command->parsed()) {
+    return revolve::station::RunExportCommand(export_options, std::cout, std::cerr);
   }
   if (scan->parsed()) {
     return revolve::station::RunScanCommand(scan_options, signals.token(), std::cout, std::cerr);

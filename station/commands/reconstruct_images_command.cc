@@ -14,7 +14,6 @@
 #include "reconstruct/image_set.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/meridian/meridian.h"
-#include "reconstruct/meridian/meridian_vrml.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/reconstructor.h"
@@ -175,8 +174,8 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   std::optional<rc::MeridianModel> meridian_model;
   rc::Mesh mesh;
   if (options.method == "meridian") {
-    rc::MeridianReconstructor meridian(
-        rc::MeridianOptions{options.row_step_px, options.both_sides});
+    rc::MeridianReconstructor meridian(rc::MeridianOptions{options.row_step_px, options.both_sides,
+                                                           reconstruct_options.texture_size_px});
     for (std::size_t i = 0; i < views.size(); ++i) {
       if (Expected<void> done = meridian.Integrate(masks[i], set->images[i].image, views[i]);
           !done) {
@@ -212,31 +211,17 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
     return MakeError(ErrorCode::kIo, fmt::format("{}: cannot create the folder: {}",
                                                  model_dir.string(), ec.message()));
   }
-  std::vector<std::string> formats = options.formats;
-  std::vector<std::filesystem::path> files;
-  const bool textured_vrml = meridian_model.has_value() &&
-                             std::find(formats.begin(), formats.end(), "wrl") != formats.end();
-  if (textured_vrml) {
-    formats.erase(std::remove(formats.begin(), formats.end(), "wrl"), formats.end());
-    // Thesis mode's pixels and a cameras file's units are both shown as they are (scale 1).
-    Expected<std::vector<std::filesystem::path>> written =
-        rc::WriteTexturedVrml(*meridian_model, model_dir / "model.wrl", 1.0);
-    if (!written) return std::unexpected(written.error());
-    files.insert(files.end(), written->begin(), written->end());
-  }
-  if (!formats.empty()) {
-    Expected<std::vector<std::filesystem::path>> written =
-        rc::WriteModel(mesh, model_dir, "model", formats);
-    if (!written) return std::unexpected(written.error());
-    files.insert(files.end(), written->begin(), written->end());
-  }
+  // A meridian mesh carries its view-dependent texture: WriteModel writes it into the VRML.
+  Expected<std::vector<std::filesystem::path>> files =
+      rc::WriteModel(mesh, model_dir, "model", options.formats);
+  if (!files) return std::unexpected(files.error());
   times["write_ms"] = MsSince(t);
 
   // Metrics.
   t = Clock::now();
   const rc::MeshStats stats = rc::ComputeStats(mesh);
   nlohmann::json file_names = nlohmann::json::array();
-  for (const std::filesystem::path& f : files) {
+  for (const std::filesystem::path& f : *files) {
     file_names.push_back(std::filesystem::relative(f, options.out).string());
   }
   report["model"] = {{"files", file_names},
@@ -252,7 +237,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   if (meridian_model) {
     report["model"]["meridians"] = meridian_model->meridian_count;
     report["model"]["rows"] = meridian_model->row_count;
-    report["model"]["texture_images"] = meridian_model->textures.size();
+    report["model"]["texture_images"] = meridian_model->mesh.view_texture.images.size();
   }
   const rc::ReprojectionStats reprojection = rc::SilhouetteReprojection(mesh, views, masks);
   nlohmann::json per_view = nlohmann::json::array();
@@ -280,7 +265,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
       options.method, stats.triangle_count, size.x(), size.y(), size.z(), unit, stats.volume_mm3,
       unit, thesis_mode ? " (unscaled)" : "", reprojection.mean, reprojection.min,
       names[static_cast<std::size_t>(reprojection.worst_view)]);
-  for (const std::filesystem::path& f : files) out << "  " << f.string() << "\n";
+  for (const std::filesystem::path& f : *files) out << "  " << f.string() << "\n";
   out << "  " << (options.out / "report.json").string() << "\n";
   return report;
 }

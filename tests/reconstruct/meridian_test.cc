@@ -19,6 +19,7 @@
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/reconstructor.h"
+#include "reconstruct/texture/view_atlas.h"
 #include "tests/reconstruct/sphere_scene.h"
 
 namespace revolve::reconstruct {
@@ -173,15 +174,17 @@ TEST(Meridian, StripsAreTexturedFromTheViewFacingThem) {
   const Expected<MeridianModel> model = ReconstructVase(MeridianOptions{}, 36, 10.0, true);
   ASSERT_TRUE(model.has_value()) << model.error().ToString();
   ASSERT_TRUE(model->HasTexture());
-  ASSERT_EQ(model->face_uv.size(), model->mesh.faces.size());
+  ASSERT_EQ(model->mesh.view_texture.uv_faces.size(), model->mesh.faces.size());
   int textured = 0;
   for (std::size_t f = 0; f < model->mesh.faces.size(); ++f) {
-    const int t = model->face_texture[f];
+    const int t = model->mesh.view_texture.face_image[f];
     if (t < 0) continue;
     ++textured;
-    ASSERT_LT(t, static_cast<int>(model->textures.size()));
+    ASSERT_LT(t, static_cast<int>(model->mesh.view_texture.images.size()));
     for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector2f& uv = model->uv[static_cast<std::size_t>(model->face_uv[f][k])];
+      const Eigen::Vector2f& uv =
+          model->mesh.view_texture
+              .uvs[static_cast<std::size_t>(model->mesh.view_texture.uv_faces[f][k])];
       EXPECT_GE(uv.minCoeff(), 0.0f);
       EXPECT_LE(uv.maxCoeff(), 1.0f);
     }
@@ -192,12 +195,14 @@ TEST(Meridian, StripsAreTexturedFromTheViewFacingThem) {
   // centroid of every textured triangle and find the object's colour, not the black background.
   int on_object = 0;
   for (std::size_t f = 0; f < model->mesh.faces.size(); ++f) {
-    const int t = model->face_texture[f];
+    const int t = model->mesh.view_texture.face_image[f];
     if (t < 0) continue;
     Eigen::Vector2f uv = Eigen::Vector2f::Zero();
-    for (int k = 0; k < 3; ++k) uv += model->uv[static_cast<std::size_t>(model->face_uv[f][k])];
+    for (int k = 0; k < 3; ++k)
+      uv += model->mesh.view_texture
+                .uvs[static_cast<std::size_t>(model->mesh.view_texture.uv_faces[f][k])];
     uv /= 3.0f;
-    const cv::Mat& image = model->textures[static_cast<std::size_t>(t)];
+    const cv::Mat& image = model->mesh.view_texture.images[static_cast<std::size_t>(t)];
     const int u = std::clamp(static_cast<int>(uv.x() * image.cols), 0, image.cols - 1);
     const int v = std::clamp(static_cast<int>((1.0f - uv.y()) * image.rows), 0, image.rows - 1);
     on_object += image.at<cv::Vec3b>(v, u)[1] > 0;
@@ -208,13 +213,13 @@ TEST(Meridian, StripsAreTexturedFromTheViewFacingThem) {
                                     ("revolve_meridian_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
   const Expected<std::vector<std::filesystem::path>> files =
-      WriteTexturedVrml(*model, dir / "vase.wrl", 1.0);
+      WriteTexturedVrml(model->mesh, dir / "vase.wrl", 1.0);
   ASSERT_TRUE(files.has_value()) << files.error().ToString();
-  EXPECT_EQ(files->size(), model->textures.size() + 1);
+  EXPECT_EQ(files->size(), model->mesh.view_texture.images.size() + 1);
   EXPECT_EQ(files->back(), dir / "vase.wrl");
   const Expected<std::vector<std::string>> urls = ReadVrmlTextureUrls(dir / "vase.wrl");
   ASSERT_TRUE(urls.has_value()) << urls.error().ToString();
-  ASSERT_EQ(urls->size(), model->textures.size());
+  ASSERT_EQ(urls->size(), model->mesh.view_texture.images.size());
   for (const std::string& url : *urls) EXPECT_TRUE(std::filesystem::exists(dir / url)) << url;
   std::ifstream in(dir / "vase.wrl");
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -224,6 +229,52 @@ TEST(Meridian, StripsAreTexturedFromTheViewFacingThem) {
     EXPECT_NE(text.find(node), std::string::npos) << node;
   }
   std::filesystem::remove_all(dir);
+}
+
+// The atlas OBJ and glTF carry holds the view-dependent texture's pixels: every face samples the
+// same colour at its centroid in the atlas as in its view's image; untextured faces are grey.
+TEST(Meridian, AtlasHoldsTheViewDependentTexture) {
+  const Expected<MeridianModel> model = ReconstructVase(MeridianOptions{}, 36, 10.0, true);
+  ASSERT_TRUE(model.has_value()) << model.error().ToString();
+  const Mesh& mesh = model->mesh;
+  ASSERT_TRUE(mesh.HasTexture());
+  EXPECT_LE(std::max(mesh.texture.cols, mesh.texture.rows), 4096);
+  // Strips are narrow: the atlas is far smaller than the frames it comes from.
+  EXPECT_LT(mesh.texture.total(),
+            mesh.view_texture.images.size() * mesh.view_texture.images[0].total() / 4);
+  const ViewTexture& vt = mesh.view_texture;
+  int compared = 0;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    Eigen::Vector2f atlas_uv = Eigen::Vector2f::Zero();
+    for (int k = 0; k < 3; ++k) atlas_uv += mesh.uvs[static_cast<std::size_t>(mesh.uv_faces[f][k])];
+    atlas_uv /= 3.0f;
+    const cv::Vec3b in_atlas =
+        mesh.texture.at<cv::Vec3b>(static_cast<int>(atlas_uv.y() * mesh.texture.rows),
+                                   static_cast<int>(atlas_uv.x() * mesh.texture.cols));
+    const int t = vt.face_image[f];
+    if (t < 0) {
+      EXPECT_EQ(in_atlas, cv::Vec3b(204, 204, 204));
+      continue;
+    }
+    Eigen::Vector2f uv = Eigen::Vector2f::Zero();
+    for (int k = 0; k < 3; ++k) uv += vt.uvs[static_cast<std::size_t>(vt.uv_faces[f][k])];
+    uv /= 3.0f;
+    const cv::Mat& image = vt.images[static_cast<std::size_t>(t)];
+    const cv::Vec3b in_view = image.at<cv::Vec3b>(static_cast<int>((1.0f - uv.y()) * image.rows),
+                                                  static_cast<int>(uv.x() * image.cols));
+    EXPECT_EQ(in_atlas, in_view) << "face " << f;
+    ++compared;
+  }
+  EXPECT_EQ(compared, 2 * model->meridian_count * (model->row_count - 1));
+
+  // A small atlas bound scales the patches down to fit.
+  Mesh small = mesh;
+  ASSERT_TRUE(AtlasFromViewTexture(&small, 256).has_value());
+  EXPECT_LE(std::max(small.texture.cols, small.texture.rows), 256);
+  EXPECT_FALSE(AtlasFromViewTexture(&small, 10).has_value());
+  Mesh plain = mesh;
+  plain.view_texture = {};
+  EXPECT_FALSE(AtlasFromViewTexture(&plain, 1024).has_value());
 }
 
 TEST(Meridian, CreateDispatchesAndChecksItsInput) {

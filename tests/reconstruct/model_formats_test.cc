@@ -14,9 +14,12 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/marching_cubes.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/meridian/meridian.h"
 #include "reconstruct/metrics/metrics.h"
 
 namespace revolve::reconstruct {
@@ -106,6 +109,29 @@ Mesh WithTexture(Mesh mesh) {
     for (int x = 0; x < 128; ++x) mesh.texture.at<cv::Vec3b>(y, x) = cv::Vec3b(x * 2, y * 4, 99);
   }
   return mesh;
+}
+
+// The meridian method's mesh of a cylinder in 12 thesis views, each photo a gradient in its own
+// colour: its view-dependent texture packed into an atlas (reconstruct/texture/view_atlas.h),
+// with the caps (seen edge-on) on the atlas's grey patch.
+Mesh MeridianCylinder() {
+  MeridianReconstructor reconstructor(MeridianOptions{9, false, 512});
+  for (int k = 0; k < 12; ++k) {
+    cv::Mat mask(240, 200, CV_8UC1, cv::Scalar(0));
+    cv::rectangle(mask, cv::Point(60, 40), cv::Point(139, 209), cv::Scalar(255), cv::FILLED);
+    cv::Mat photo(mask.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+    for (int y = 0; y < photo.rows; ++y) {
+      for (int x = 0; x < photo.cols; ++x) {
+        if (mask.at<std::uint8_t>(y, x) != 0) photo.at<cv::Vec3b>(y, x) = cv::Vec3b(20 * k, x, y);
+      }
+    }
+    EXPECT_TRUE(reconstructor.Integrate(mask, photo, ThesisView(200, 240, 30.0 * k)).has_value());
+  }
+  Expected<Mesh> mesh = reconstructor.Finish();
+  EXPECT_TRUE(mesh.has_value());
+  EXPECT_TRUE(mesh->HasTexture());
+  EXPECT_TRUE(mesh->HasViewTexture());
+  return mesh ? *mesh : Mesh{};
 }
 
 class ModelFormatsTest : public ::testing::Test {
@@ -270,9 +296,11 @@ TEST_F(ModelFormatsTest, AssimpLoadsEveryFormatWithTheSameCounts) {
   if (!HaveCommand("assimp")) {
     GTEST_SKIP() << "assimp (Debian assimp-utils) is not installed; ./run installs it";
   }
-  for (int variant = 0; variant < 2; ++variant) {
-    const Mesh mesh = variant == 0 ? WithColours(Blob()) : WithTexture(WithColours(Blob()));
-    SCOPED_TRACE(variant == 0 ? "vertex colours" : "texture");
+  for (int variant = 0; variant < 3; ++variant) {
+    const Mesh mesh = variant == 0   ? WithColours(Blob())
+                      : variant == 1 ? WithTexture(WithColours(Blob()))
+                                     : MeridianCylinder();
+    SCOPED_TRACE(variant == 0 ? "vertex colours" : variant == 1 ? "texture" : "meridian texture");
     const Expected<std::vector<fs::path>> files =
         WriteModel(mesh, dir_, "model", {"ply", "obj", "stl", "glb"});
     ASSERT_TRUE(files.has_value()) << files.error().ToString();
@@ -319,11 +347,12 @@ TEST_F(ModelFormatsTest, KhronosValidatorFindsNoErrorInTheGlb) {
     GTEST_SKIP() << "the glTF validator is not installed (node and npm ci in tests/tools; "
                     "./run test installs it)";
   }
-  for (int variant = 0; variant < 3; ++variant) {
+  for (int variant = 0; variant < 4; ++variant) {
     SCOPED_TRACE(variant);
     const Mesh mesh = variant == 0   ? Blob()
                       : variant == 1 ? WithColours(Blob())
-                                     : WithTexture(Blob());
+                      : variant == 2 ? WithTexture(Blob())
+                                     : MeridianCylinder();
     ASSERT_TRUE(WriteGlb(mesh, dir_ / "m.glb").has_value());
     const CommandResult result =
         RunCommand("node '" + script.string() + "' '" + (dir_ / "m.glb").string() + "'");
