@@ -52,7 +52,8 @@ class ConnectionThreads final : public httplib::TaskQueue {
     {
       std::lock_guard lock(mutex_);
       jobs_.push_back(std::move(fn));
-      if (idle_ == 0 && threads_.size() < max_) threads_.emplace_back([this] { Work(); });
+      // More waiting connections than idle threads to take them: one more thread.
+      if (jobs_.size() > idle_ && threads_.size() < max_) threads_.emplace_back([this] { Work(); });
     }
     cv_.notify_one();
   }
