@@ -12,7 +12,7 @@
 
 #include "base/log.h"
 #include "reconstruct/hull/visual_hull.h"
-#include "reconstruct/io/atomic_file.h"
+#include "base/atomic_file.h"
 #include "reconstruct/io/mesh_io.h"
 
 namespace revolve::station {
@@ -212,7 +212,7 @@ void LiveView::PublishHull() {
     Logger("station")->warn("live hull: {}", written.error().message);
     return;
   }
-  Expected<std::string> bytes = reconstruct::internal::ReadWholeFile(file);
+  Expected<std::string> bytes = ReadWholeFile(file);
   if (!bytes) return;
   std::lock_guard lock(hull_mutex_);
   const std::uint64_t version = hull_glb_ ? hull_glb_->version + 1 : 1;

@@ -9,15 +9,14 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <deque>
-#include <fstream>
 #include <mutex>
-#include <sstream>
 #include <thread>
 #include <vector>
 
 #include <fmt/format.h>
 #include <httplib.h>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 #include "base/unique_fd.h"
 #include "station/protocol.h"
@@ -144,13 +143,6 @@ std::optional<std::string> CookieValue(const httplib::Request& req, std::string_
   return std::nullopt;
 }
 
-std::optional<std::string> ReadSmallFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 }  // namespace
 
@@ -249,11 +241,8 @@ Expected<std::string> ReadWebToken(const fs::path& token_file) {
                                  "`head -c 24 /dev/urandom | base64 > {}`)",
                                  token_file.string(), token_file.string()));
   }
-  auto text = ReadSmallFile(token_file);
-  if (!text) {
-    return MakeError(ErrorCode::kIo, fmt::format("web.token_file: cannot read {}: {}",
-                                                 token_file.string(), std::strerror(errno)));
-  }
+  Expected<std::string> text = ReadWholeFile(token_file);
+  if (!text) return MakeError(text.error().code, "web.token_file: " + text.error().message);
   std::string token = text->substr(0, text->find('\n'));
   while (!token.empty() && (token.back() == '\r' || token.back() == ' ' || token.back() == '\t')) {
     token.pop_back();
@@ -350,7 +339,7 @@ class WebServer::Impl {
         {"OrbitControls.js", *dir / "examples/js/controls/OrbitControls.js"},
         {"GLTFLoader.js", *dir / "examples/js/loaders/GLTFLoader.js"}};
     for (const auto& [name, path] : files) {
-      if (auto bytes = ReadSmallFile(path)) {
+      if (auto bytes = ReadWholeFile(path)) {
         three_[name] = std::move(*bytes);
       } else {
         log_->warn("web: {} is missing: the console shows no 3D view", path.string());
@@ -593,10 +582,10 @@ void WebServer::Impl::RouteScanFiles() {
       return;
     }
     nlohmann::json body = {{"id", id}, {"report", nullptr}};
-    body["manifest"] = nlohmann::json::parse(ReadSmallFile(*manifest).value_or(""), nullptr, false);
+    body["manifest"] = nlohmann::json::parse(ReadWholeFile(*manifest).value_or(""), nullptr, false);
     if (body["manifest"].is_discarded()) body["manifest"] = nullptr;
     if (auto report = ResolveScanFile(scans_dir_, id, "report.json")) {
-      body["report"] = nlohmann::json::parse(ReadSmallFile(*report).value_or(""), nullptr, false);
+      body["report"] = nlohmann::json::parse(ReadWholeFile(*report).value_or(""), nullptr, false);
       if (body["report"].is_discarded()) body["report"] = nullptr;
     }
     res.set_header("Cache-Control", "no-store");

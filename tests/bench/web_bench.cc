@@ -19,7 +19,7 @@
 #include <fmt/format.h>
 
 #include "base/log.h"
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 #include "station/daemon.h"
 
 // Last: <resolv.h>, which httplib.h pulls in, defines _res, a name Eigen's headers use.

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 #include "tests/e2e/daemon_harness.h"
 
 // Last: <resolv.h>, which httplib.h pulls in, defines _res, a name Eigen's headers use.

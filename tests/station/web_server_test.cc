@@ -20,7 +20,7 @@
 #include <gtest/gtest.h>
 
 #include "base/unique_fd.h"
-#include "station/control_client.h"
+#include "station/commands/control_client.h"
 #include "station/daemon.h"
 #include "station/web_server.h"
 #include "tests/support/control_events.h"
