@@ -51,7 +51,16 @@ async function main() {
     const page = await browser.newPage();
     await page.setViewport({ width: 1280, height: 1600 });
     page.on('pageerror', (e) => consoleErrors.push(String(e)));
-    page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+    // Chromium reports a failed request as a console error without its URL: the responses say
+    // which. The live frame and hull answer 404 until the first stop is saved and meshed.
+    page.on('console', (m) => {
+      if (m.type() === 'error' && !m.text().startsWith('Failed to load resource')) consoleErrors.push(m.text());
+    });
+    page.on('response', (r) => {
+      if (r.status() >= 400 && !new URL(r.url()).pathname.startsWith('/api/live/')) {
+        consoleErrors.push(r.status() + ' ' + r.url());
+      }
+    });
     await page.goto(url, { waitUntil: 'load', timeout: 30000 });
     await page.waitForFunction(() => window.revolve && !document.getElementById('start').disabled,
         { timeout: 30000 });
