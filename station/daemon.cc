@@ -28,10 +28,14 @@
 #include "base/log.h"
 #include "base/unique_fd.h"
 #include "station/devices.h"
+#include "station/event_hub.h"
+#include "station/live_view.h"
+#include "station/loop_calls.h"
 #include "station/notify.h"
 #include "station/protocol.h"
 #include "station/scan_folder.h"
 #include "station/scan_session.h"
+#include "station/web_server.h"
 
 #ifndef REVOLVE_VERSION
 #define REVOLVE_VERSION "unknown"
@@ -48,6 +52,8 @@ constexpr std::size_t kMaxClientOutBytes = 4u << 20;
 constexpr std::size_t kMaxListedScans = 1000;
 // The main loop wakes at least this often.
 constexpr auto kMaxPollWait = std::chrono::milliseconds(1000);
+// A web request waits this long for the main loop.
+constexpr auto kWebCallTimeout = std::chrono::milliseconds(5000);
 
 Error Errno(ErrorCode code, std::string what, int err) {
   return Error{code, fmt::format("{}: {}", what, std::strerror(err))};
@@ -162,6 +168,8 @@ class Daemon::Impl {
       : config_(std::move(config)), hooks_(std::move(hooks)), log_(Logger("station")) {}
 
   ~Impl() {
+    loop_calls_.Close();
+    if (web_) web_->Stop();
     if (job_) {
       job_->stop.request_stop();
       if (job_->thread.joinable()) job_->thread.join();
@@ -206,6 +214,14 @@ class Daemon::Impl {
     auto listen = BindControlSocket(socket_path_, config_.daemon);
     if (!listen) return std::unexpected(listen.error());
     listen_fd_ = std::move(*listen);
+    // The socket's watchers and the web console's streams read the same events.
+    hub_.Subscribe([this](const HubEvent& h) {
+      const std::string line = EventLine(h.event);
+      for (Client& c : clients_) {
+        if (c.watching && !c.closed) Queue(c, line);
+      }
+    });
+    if (auto web = StartWeb(); !web) return std::unexpected(web.error());
     started_ = Clock::now();
     last_event_.time = IsoTimeNow();
     return {};
@@ -238,6 +254,53 @@ class Daemon::Impl {
   const std::filesystem::path& scans_dir() const { return scans_dir_; }
 
  private:
+  // ---- Web console (station/web_server.h) -----------------------------------------------------
+
+  Expected<void> StartWeb() {
+    if (config_.web.listen.empty()) return {};
+    std::string token;
+    if (!config_.web.token_file.empty()) {
+      auto read = ReadWebToken(config_.web.token_file);
+      if (!read) return MakeError(ErrorCode::kBadInput, read.error().message);
+      token = std::move(*read);
+    }
+    if (auto live = LiveView::Create({}); live) {
+      live_ = std::move(*live);
+    } else {
+      log_->warn("web: {} (no live frame or hull)", live.error().message);
+    }
+    StationControl control;
+    control.status = [this] {
+      return loop_calls_.Run([this]() -> Expected<nlohmann::json> { return StatusJson(); },
+                             kWebCallTimeout);
+    };
+    control.start = [this](const std::optional<std::string>& recipe,
+                           const std::optional<std::string>& resume) {
+      return loop_calls_.Run(
+          [this, recipe, resume] {
+            auto started = Start(recipe, resume, "web");
+            if (!started) log_->warn("start refused: {}", started.error().message);
+            return started;
+          },
+          kWebCallTimeout);
+    };
+    control.abort = [this] {
+      return loop_calls_.Run([this] { return Abort("abort requested over the web console"); },
+                             kWebCallTimeout);
+    };
+    control.list = [this] {
+      return loop_calls_.Run([this]() -> Expected<nlohmann::json> { return ListScans(); },
+                             kWebCallTimeout);
+    };
+    auto web = WebServer::Start(config_.web, std::move(token), scans_dir_, std::move(control), hub_,
+                                live_.get());
+    if (!web) return std::unexpected(web.error());
+    web_ = std::move(*web);
+    log_->info("web console: {}{}", web_->url(),
+               config_.web.token_file.empty() ? "" : " (token: web.token_file)");
+    return {};
+  }
+
   // ---- Devices -------------------------------------------------------------------------------
 
   void OpenAllDevices() {
@@ -373,6 +436,7 @@ class Daemon::Impl {
     folder.SetByteLimit(job->config.station.simulate.disk_limit_bytes);
     job->session = std::make_unique<ScanSession>(job->config, devices_, folder, job->id);
     job->session->OnEvent([this](const ScanEvent& event) { Post(event); });
+    if (live_) job->session->OnLive([this](const LiveStop& stop) { live_->AddStop(stop); });
     ScanJob* raw = job.get();
     raw->thread = std::jthread([this, raw] {
       Expected<ScanResult> result = raw->resumed ? raw->session->Resume(raw->stop.get_token())
@@ -487,10 +551,7 @@ class Daemon::Impl {
         }
     }
     notifier_.Status(StatusText());
-    const std::string line = EventLine(e);
-    for (Client& c : clients_) {
-      if (c.watching && !c.closed) Queue(c, line);
-    }
+    hub_.Publish(e);
   }
 
   std::string StatusText() const {
@@ -535,43 +596,14 @@ class Daemon::Impl {
                    {"clients", clients_.size()},
                    {"socket", socket_path_.string()},
                    {"scans_dir", scans_dir_.string()},
+                   {"web", web_ ? nlohmann::json(web_->url()) : nlohmann::json(nullptr)},
                    {"recipes", RecipeNames(config_)},
                    {"default_recipe", config_.station.recipe}};
     return j;
   }
 
   nlohmann::json ListScans() const {
-    std::vector<std::string> ids;
-    std::error_code ec;
-    for (const auto& entry : std::filesystem::directory_iterator(scans_dir_, ec)) {
-      if (entry.is_directory(ec)) ids.push_back(entry.path().filename().string());
-    }
-    std::sort(ids.begin(), ids.end());
-    if (ids.size() > kMaxListedScans) ids.erase(ids.begin(), ids.end() - kMaxListedScans);
-    nlohmann::json scans = nlohmann::json::array();
-    for (const std::string& id : ids) {
-      nlohmann::json s = {{"id", id}};
-      auto manifest = ReadManifest(scans_dir_ / id);
-      if (!manifest) {
-        s["state"] = "unknown";
-        s["error"] = manifest.error().message;
-      } else {
-        std::string state = manifest->value("state", std::string("unknown"));
-        if (state == "running" && !(job_ && job_->id == id)) state = "interrupted";
-        s["state"] = state;
-        s["recipe"] = manifest->value("recipe", std::string("default"));
-        s["stops_done"] = manifest->value("stops_done", 0);
-        s["stops_planned"] = manifest->value("stops_planned", 0);
-        s["started"] = manifest->value("started", std::string());
-        s["finished"] = manifest->value("finished", std::string());
-        if (manifest->contains("model")) s["model"] = (*manifest)["model"];
-        if (manifest->contains("error") && (*manifest)["error"].is_object()) {
-          s["error"] = (*manifest)["error"].value("message", std::string());
-        }
-      }
-      scans.push_back(std::move(s));
-    }
-    return scans;
+    return ListScanFolders(scans_dir_, job_ ? job_->id : std::string(), kMaxListedScans);
   }
 
   // ---- Clients -------------------------------------------------------------------------------
@@ -724,6 +756,7 @@ class Daemon::Impl {
       (void)!::read(wake_fd_.get(), &count, sizeof(count));
     }
     DrainQueue();
+    loop_calls_.RunPending();
     if (signal_fd_.valid() && (fds[1].revents & POLLIN)) ReadSignals();
     if (fds[2].revents & POLLIN) AcceptClients();
 
@@ -799,6 +832,8 @@ class Daemon::Impl {
       (void)devices_.turntable->Disable();
     }
     if (panel_) panel_->Show(LedPattern::kOff, false, MonoNow());
+    loop_calls_.Close();
+    if (web_) web_->Stop();
     for (Client& c : clients_) WriteClient(c);  // best effort: the last events
     clients_.clear();
     listen_fd_.Reset();
@@ -832,6 +867,10 @@ class Daemon::Impl {
   std::optional<Error> job_error_;
   std::string shutdown_reason_;
   std::atomic<bool> shutdown_{false};
+  EventHub hub_;
+  LoopCalls loop_calls_{[this] { Wake(); }};
+  std::unique_ptr<LiveView> live_;
+  std::unique_ptr<WebServer> web_;  // after what it borrows (hub_, live_): stopped first
   Clock::time_point started_;
   Clock::time_point next_watchdog_;
 };

@@ -1,5 +1,6 @@
 #include "station/scan_folder.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -108,6 +109,41 @@ std::string NewScanId() {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &local);
   return buf;
+}
+
+nlohmann::json ListScanFolders(const std::filesystem::path& scans_dir, std::string_view running_id,
+                               std::size_t max_scans) {
+  std::vector<std::string> ids;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(scans_dir, ec)) {
+    if (entry.is_directory(ec)) ids.push_back(entry.path().filename().string());
+  }
+  std::sort(ids.begin(), ids.end());
+  if (ids.size() > max_scans) ids.erase(ids.begin(), ids.end() - static_cast<long>(max_scans));
+  nlohmann::json scans = nlohmann::json::array();
+  for (const std::string& id : ids) {
+    nlohmann::json s = {{"id", id}};
+    auto manifest = ReadManifest(scans_dir / id);
+    if (!manifest) {
+      s["state"] = "unknown";
+      s["error"] = manifest.error().message;
+    } else {
+      std::string state = manifest->value("state", std::string("unknown"));
+      if (state == "running" && id != running_id) state = "interrupted";
+      s["state"] = state;
+      s["recipe"] = manifest->value("recipe", std::string("default"));
+      s["stops_done"] = manifest->value("stops_done", 0);
+      s["stops_planned"] = manifest->value("stops_planned", 0);
+      s["started"] = manifest->value("started", std::string());
+      s["finished"] = manifest->value("finished", std::string());
+      if (manifest->contains("model")) s["model"] = (*manifest)["model"];
+      if (manifest->contains("error") && (*manifest)["error"].is_object()) {
+        s["error"] = (*manifest)["error"].value("message", std::string());
+      }
+    }
+    scans.push_back(std::move(s));
+  }
+  return scans;
 }
 
 }  // namespace revolve::station

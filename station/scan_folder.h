@@ -8,6 +8,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -50,6 +51,13 @@ class ScanFolder {
 
 // Reads `dir`/manifest.json. Errors: not_found, bad_input (not JSON; names the file).
 Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir);
+
+// The scans in `scans_dir` (at most `max_scans`, the newest by id), oldest first: per scan its
+// id, state ("running" only for `running_id`; another "running" manifest is "interrupted"),
+// recipe, stops_done, stops_planned, started, finished, model (files) and error, from its
+// manifest; a folder whose manifest cannot be read is listed with state "unknown" and the error.
+nlohmann::json ListScanFolders(const std::filesystem::path& scans_dir, std::string_view running_id,
+                               std::size_t max_scans);
 
 // "stop_007.png"
 std::string StopFileName(int index);

@@ -129,6 +129,11 @@ View ScanGeometry::ViewAt(double angle_deg, int width_px, int height_px) const {
   return view;
 }
 
+std::optional<View> ScanGeometry::LiveView(double angle_deg, int width_px, int height_px) const {
+  if (source_ == GeometrySource::kThesis) return std::nullopt;
+  return ViewAt(angle_deg, width_px, height_px);
+}
+
 Expected<void> ScanGeometry::Integrate(const cv::Mat& mask, const cv::Mat& frame,
                                        double angle_deg) {
   masks_.push_back(mask);

@@ -75,6 +75,14 @@ class ScanGeometry {
   // Integrated at once, except in thesis mode (kept for Finish).
   Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& frame, double angle_deg);
 
+  // The view of a stop at plate angle `angle_deg` as it is known while scanning (with a
+  // calibration or the camera's own geometry); nullopt in thesis mode, whose views need every
+  // silhouette. For live previews (station/live_view.h).
+  std::optional<View> LiveView(double angle_deg, int width_px, int height_px) const;
+  // The carving volume in the object frame (mm) of a metric geometry.
+  const Eigen::Vector3d& bbox_min_mm() const { return options_.bbox_min_mm; }
+  const Eigen::Vector3d& bbox_max_mm() const { return options_.bbox_max_mm; }
+
   // The mesh of every stop integrated. Errors: as Reconstructor::Finish; thesis mode: no
   // silhouette, or no carving volume found.
   Expected<reconstruct::Mesh> Finish();

@@ -466,7 +466,11 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
           Clock::now()));
     }
 
-    if (auto e = Enter(ScanState::kIntegrating, k, commanded_deg); !e) {
+    // The integrating event carries the silhouette's area.
+    if (auto e = machine_->Enter(ScanState::kIntegrating, Clock::now(), k, commanded_deg); e) {
+      e->mask_area_px = mask_area_px;
+      Emit(std::move(*e));
+    } else {
       return std::unexpected(e.error());
     }
     t = Clock::now();
@@ -508,6 +512,11 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
     if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
     times_.save_ms += MsSince(t);
     machine_->StopSaved();
+    if (on_live_) {
+      on_live_(LiveStop{scan_id_, k, scan.stops, frame->image, *mask,
+                        geometry->LiveView(state->angle_deg, mask->cols, mask->rows),
+                        geometry->bbox_min_mm(), geometry->bbox_max_mm()});
+    }
     done.insert(k);
     ++result.stops_done;
     ++captured;

@@ -17,6 +17,7 @@
 #include <opencv2/core.hpp>
 
 #include "base/error.h"
+#include "base/rig.h"
 #include "station/devices.h"
 #include "station/saved_stops.h"
 #include "station/scan_folder.h"
@@ -43,6 +44,19 @@ struct StopProgress {
   double eta_s = 0;    // estimated time until the last stop is saved
 };
 
+// A saved stop as the live console shows it (station/live_view.h). The images are shared, not
+// copied: neither the session nor a listener writes into them after the call.
+struct LiveStop {
+  std::string scan_id;
+  int index = 0;
+  int stops = 0;
+  cv::Mat frame;             // as saved (undistorted), BGR
+  cv::Mat mask;              // CV_8UC1, non-zero = object
+  std::optional<View> view;  // known while scanning (not in thesis mode)
+  Eigen::Vector3d bbox_min_mm = Eigen::Vector3d::Zero();  // the carving volume
+  Eigen::Vector3d bbox_max_mm = Eigen::Vector3d::Zero();
+};
+
 struct ScanResult {
   int stops_done = 0;
   StageTimes times;
@@ -61,6 +75,9 @@ class ScanSession {
 
   // Called on the scanning thread after each stop is saved.
   void OnStop(std::function<void(const StopProgress&)> callback) { on_stop_ = std::move(callback); }
+  // Called on the scanning thread after each stop is saved, with its frame and mask; must return
+  // quickly (queue the work elsewhere): the next stop waits for it.
+  void OnLive(std::function<void(const LiveStop&)> callback) { on_live_ = std::move(callback); }
   // Called on the scanning thread for every event (transitions and notes), in order. The last
   // event of Run()/Resume() is terminal (done, failed or aborted) and comes after the manifest
   // says so.
@@ -98,6 +115,7 @@ class ScanSession {
   std::string scan_id_;
   std::function<void(const StopProgress&)> on_stop_;
   std::function<void(const ScanEvent&)> on_event_;
+  std::function<void(const LiveStop&)> on_live_;
   nlohmann::json manifest_;
   StageTimes times_;
   std::unique_ptr<ScanStateMachine> machine_;

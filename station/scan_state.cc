@@ -134,6 +134,7 @@ nlohmann::json ScanEvent::ToJson() const {
                       {"progress", progress},
                       {"elapsed_s", elapsed_s},
                       {"eta_s", eta_s ? nlohmann::json(*eta_s) : nlohmann::json(nullptr)}};
+  if (mask_area_px) j["mask_area_px"] = *mask_area_px;
   if (!note.empty()) j["note"] = note;
   if (error) {
     j["error"] = {{"code", revolve::ToString(error->code)}, {"message", error->message}};
@@ -159,6 +160,9 @@ Expected<ScanEvent> ScanEventFromJson(const nlohmann::json& j) {
     e.progress = j.value("progress", 0.0);
     e.elapsed_s = j.value("elapsed_s", 0.0);
     if (j.contains("eta_s") && j["eta_s"].is_number()) e.eta_s = j["eta_s"].get<double>();
+    if (j.contains("mask_area_px") && j["mask_area_px"].is_number_integer()) {
+      e.mask_area_px = j["mask_area_px"].get<int>();
+    }
     e.note = j.value("note", std::string());
     if (j.contains("error") && j["error"].is_object()) {
       e.error = Error{ErrorCodeFromString(j["error"].value("code", std::string())),

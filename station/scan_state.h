@@ -56,9 +56,10 @@ struct ScanEvent {
   double angle_deg = 0.0;  // commanded angle of `stop`
   double progress = 0.0;   // 0..1
   double elapsed_s = 0.0;
-  std::optional<double> eta_s;  // unknown before the first stop is done
-  std::string note;             // a note event's text; a terminal event's reason or result
-  std::optional<Error> error;   // failed / aborted
+  std::optional<double> eta_s;      // unknown before the first stop is done
+  std::optional<int> mask_area_px;  // integrating: the stop's silhouette area
+  std::string note;                 // a note event's text; a terminal event's reason or result
+  std::optional<Error> error;       // failed / aborted
   std::optional<int> alarm_code;
   std::string alarm_text;
   std::string time;  // UTC ISO 8601, set by whoever emits the event

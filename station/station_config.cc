@@ -120,6 +120,30 @@ Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
   return o;
 }
 
+Expected<WebOptions> ParseWebOptions(const config::Section& s) {
+  WebOptions o;
+  config::Reader r(s);
+  r.String("listen", o.listen);
+  r.Path("token_file", o.token_file);
+  r.Integer("max_connections", o.max_connections, 1, 1024);
+  r.Integer("max_request_bytes", o.max_request_bytes, 1024, 16 << 20);
+  r.Number("timeout_s", o.timeout_s, 0.5, 300.0);
+  if (r.ok() && !o.listen.empty()) {
+    auto address = ParseListenAddress(o.listen);
+    if (!address) {
+      r.Fail(s.BadValue("listen", address.error().message));
+    } else if (!address->loopback && o.token_file.empty()) {
+      r.Fail(s.BadValue(
+          "listen", fmt::format("\"{}\" is reachable from other machines, so the console needs a "
+                                "token: set web.token_file (a file holding one line, e.g. from "
+                                "`head -c 24 /dev/urandom | base64`), or listen on 127.0.0.1",
+                                o.listen)));
+    }
+  }
+  if (auto done = r.Finish(); !done) return std::unexpected(done.error());
+  return o;
+}
+
 Expected<OperatorOptions> ParseOperatorOptions(const config::Section& s) {
   OperatorOptions o;
   config::Reader r(s);
@@ -247,7 +271,7 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document) {
   for (auto parsed :
        {section("scan", ParseScanOptions, cfg.scan),
         section("station", ParseStationOptions, cfg.station),
-        section("daemon", ParseDaemonOptions, cfg.daemon),
+        section("daemon", ParseDaemonOptions, cfg.daemon), section("web", ParseWebOptions, cfg.web),
         section("operator", ParseOperatorOptions, cfg.panel),
         section("turntable", turntable::ParseOptions, cfg.turntable),
         section("camera", capture::ParseOptions, cfg.camera),
@@ -270,6 +294,42 @@ Expected<StationConfig> ParseStationConfig(const config::Document& document) {
   if (auto sim = CheckSimulate(cfg, root); !sim) return std::unexpected(sim.error());
   if (auto unknown = root.CheckNoUnknownKeys(); !unknown) return std::unexpected(unknown.error());
   return cfg;
+}
+
+Expected<ListenAddress> ParseListenAddress(std::string_view listen) {
+  ListenAddress a;
+  std::string_view host;
+  std::string_view port;
+  if (!listen.empty() && listen.front() == '[') {
+    const auto close = listen.find(']');
+    if (close == std::string_view::npos || close + 1 >= listen.size() || listen[close + 1] != ':') {
+      return MakeError(ErrorCode::kBadInput, "expected \"[ipv6]:port\"");
+    }
+    host = listen.substr(1, close - 1);
+    port = listen.substr(close + 2);
+  } else {
+    const auto colon = listen.rfind(':');
+    if (colon == std::string_view::npos || listen.find(':') != colon) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          "expected \"host:port\" (\"127.0.0.1:8080\", \"[::1]:8080\"), or \"\" for no server");
+    }
+    host = listen.substr(0, colon);
+    port = listen.substr(colon + 1);
+  }
+  if (host.empty())
+    return MakeError(ErrorCode::kBadInput,
+                     "the host is missing (\"0.0.0.0:8080\" for every address)");
+  const bool digits =
+      !port.empty() && port.size() <= 5 &&
+      std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; });
+  if (!digits || std::stoi(std::string(port)) > 65535) {
+    return MakeError(ErrorCode::kBadInput, fmt::format("\"{}\" is not a port (0..65535)", port));
+  }
+  a.host = std::string(host);
+  a.port = std::stoi(std::string(port));
+  a.loopback = host == "localhost" || host == "::1" || host.starts_with("127.");
+  return a;
 }
 
 Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::path>& path) {

@@ -75,6 +75,28 @@ struct DaemonOptions {
   int max_request_bytes = 4096;                      // [64, 1048576]
 };
 
+// [web]: the web console and HTTP API (station/web_server.h, docs/web-console.md).
+struct WebOptions {
+  // "host:port" ("[::1]:8080" for IPv6); "" turns the server off. Port 0: any free port (the
+  // log and the status say which). A host other than loopback (127.0.0.0/8, ::1, localhost)
+  // needs token_file.
+  std::string listen = "127.0.0.1:8080";
+  // A file holding the access token (one line). Loopback: POSTs need it when set. Other hosts:
+  // every request needs it. Relative to the config file's folder.
+  std::string token_file;
+  int max_connections = 64;       // open connections served at once, [1, 1024]
+  int max_request_bytes = 65536;  // longest request body, [1024, 16777216]
+  double timeout_s = 5.0;         // read/write timeout and idle keep-alive, [0.5, 300]
+};
+
+// `listen` split: host (no brackets) and port. Errors: bad_input for a malformed value.
+struct ListenAddress {
+  std::string host;
+  int port = 0;
+  bool loopback = false;
+};
+Expected<ListenAddress> ParseListenAddress(std::string_view listen);
+
 // One GPIO line of the operator panel: an offset or a line name on [operator] chip.
 using PanelLine = turntable::GpioLineSpec;
 
@@ -118,6 +140,7 @@ struct StationConfig {
   ScanOptions scan;
   StationOptions station;
   DaemonOptions daemon;
+  WebOptions web;
   OperatorOptions panel;
   std::map<std::string, Recipe, std::less<>> recipes;  // "default" is implicit
   turntable::TurntableOptions turntable;

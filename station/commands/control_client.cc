@@ -191,6 +191,9 @@ std::string FormatStatus(const nlohmann::json& s) {
     out += fmt::format("daemon    pid {}, version {}, up {}, scans in {}\n",
                        daemon->value("pid", 0), daemon->value("version", ""),
                        FormatEta(daemon->value("uptime_s", 0.0)), daemon->value("scans_dir", ""));
+    if (auto web = daemon->find("web"); web != daemon->end() && web->is_string()) {
+      out += fmt::format("web       {}\n", web->get<std::string>());
+    }
   }
   return out;
 }

@@ -285,6 +285,12 @@ toml::table EffectiveTable(const StationConfig& c, const toml::table& given) {
   daemon.insert_or_assign("socket_group", c.daemon.socket_group);
   daemon.insert_or_assign("max_clients", c.daemon.max_clients);
   daemon.insert_or_assign("max_request_bytes", c.daemon.max_request_bytes);
+  toml::table& web = table("web");
+  web.insert_or_assign("listen", c.web.listen);
+  web.insert_or_assign("token_file", c.web.token_file);
+  web.insert_or_assign("max_connections", c.web.max_connections);
+  web.insert_or_assign("max_request_bytes", c.web.max_request_bytes);
+  web.insert_or_assign("timeout_s", c.web.timeout_s);
   toml::table& panel = table("operator");
   panel.insert_or_assign("chip", c.panel.chip);
   PutLine(panel, "start_button", c.panel.start_button);

@@ -59,6 +59,8 @@ class DaemonE2eTest : public ::testing::Test {
     return fmt::format(R"([daemon]
 socket = "{0}/ctl.sock"
 socket_mode = "0640"
+[web]
+listen = ""
 [station]
 scans_dir = "{0}/scans"
 min_free_mb = 0

@@ -116,6 +116,8 @@ class DaemonTest : public ::testing::Test {
 socket = "{0}/s.sock"
 max_request_bytes = 256
 max_clients = 4
+[web]
+listen = ""
 [station]
 scans_dir = "{0}/scans"
 min_free_mb = 0
