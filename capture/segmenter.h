@@ -35,7 +35,7 @@ struct SegmentOptions {
   // otsu, fixed, graphcut: dark (object brighter) | light (object darker). graphcut and auto
   // measure the backdrop's colour themselves and use this only for otsu and fixed.
   std::string backdrop = "dark";
-  int threshold = 128;            // fixed: grey level separating object and backdrop
+  int threshold = 128;  // fixed: grey level separating object and backdrop
   // otsu: when the two classes' mean grey levels differ by less than this, the frame holds no
   // object (an empty scene) and the mask is empty. background: the least automatic threshold.
   double min_contrast = 16.0;

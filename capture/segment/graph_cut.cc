@@ -9,6 +9,11 @@
 namespace revolve::capture {
 namespace {
 
+// The edge is placed where the score has risen this fraction of the way from the local backdrop
+// level to the local object level: below half, so pixels the object partly covers count as
+// object (a hull carved from masks must not lose the object's rim).
+constexpr float kEdgeFraction = 0.35f;
+
 cv::Mat Disc(int radius_px) {
   return cv::getStructuringElement(cv::MORPH_ELLIPSE,
                                    cv::Size(2 * radius_px + 1, 2 * radius_px + 1));
@@ -69,7 +74,8 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
     auto* o = out.ptr<std::uint8_t>(y);
     for (int x = 0; x < mask.cols; ++x) {
       if (!b[x] || ic[x] < 0.5f || oc[x] < 0.5f) continue;
-      const float middle = 0.5f * (is[x] / ic[x] + os[x] / oc[x]);
+      const float outside_level = os[x] / oc[x];
+      const float middle = outside_level + kEdgeFraction * (is[x] / ic[x] - outside_level);
       o[x] = s[x] >= middle ? 255 : 0;
     }
   }
@@ -101,8 +107,9 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::M
                            const GraphCutOptions& options) {
   const cv::Mat fallback = (trimap == cv::GC_FGD) | (trimap == cv::GC_PR_FGD);
   const int side = std::max(bgr.cols, bgr.rows);
-  const double scale =
-      options.max_side_px > 0 && side > options.max_side_px ? double(options.max_side_px) / side : 1.0;
+  const double scale = options.max_side_px > 0 && side > options.max_side_px
+                           ? double(options.max_side_px) / side
+                           : 1.0;
   const int radius = scale < 1.0 ? static_cast<int>(std::ceil(1.0 / scale)) : 0;
   cv::Mat small_bgr = bgr;
   cv::Mat labels = trimap.clone();
@@ -115,13 +122,22 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::M
   const bool has_fg = cv::countNonZero((labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD)) > 0;
   const bool has_bg = cv::countNonZero((labels == cv::GC_BGD) | (labels == cv::GC_PR_BGD)) > 0;
   if (!has_fg || !has_bg) return fallback;
+  // Only the rectangle around the undecided and object labels (with a margin of backdrop for
+  // its colour model) goes through the cut; the rest is backdrop for sure.
+  const cv::Rect undecided = cv::boundingRect(labels != cv::GC_BGD);
+  const int margin = std::max(8, std::max(undecided.width, undecided.height) / 8);
+  const cv::Rect crop = cv::Rect(undecided.x - margin, undecided.y - margin,
+                                 undecided.width + 2 * margin, undecided.height + 2 * margin) &
+                        cv::Rect(0, 0, labels.cols, labels.rows);
+  cv::Mat cropped_labels = labels(crop).clone();
   cv::Mat background_model, object_model;
   try {
-    cv::grabCut(small_bgr, labels, cv::Rect(), background_model, object_model,
+    cv::grabCut(small_bgr(crop), cropped_labels, cv::Rect(), background_model, object_model,
                 options.iterations, cv::GC_INIT_WITH_MASK);
   } catch (const cv::Exception&) {
     return fallback;  // too few seeds of one kind for a colour model
   }
+  cropped_labels.copyTo(labels(crop));
   cv::Mat object = (labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD);
   if (scale == 1.0) return object;
   cv::Mat up;

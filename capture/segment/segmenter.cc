@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <optional>
 
 #include <fmt/format.h>
@@ -144,11 +142,10 @@ class PipelineSegmenter final : public Segmenter {
       return out;
     }
     out.levels = {static_cast<double>(split.threshold), split.low_mean};
-    if (std::getenv("SEG_DEBUG")) std::fprintf(stderr, "levels object %.1f backdrop %.1f high %.1f\n", out.levels.object, out.levels.backdrop, split.high_mean);
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
-    out.mask = RefineWithGraphCut(bgr, out.score, TrimapFromScore(out.score, out.levels, roi, cut),
-                                  cut);
+    out.mask =
+        RefineWithGraphCut(bgr, out.score, TrimapFromScore(out.score, out.levels, roi, cut), cut);
     return out;
   }
 
@@ -181,7 +178,7 @@ class PipelineSegmenter final : public Segmenter {
     if (image.channels() == 1) return "graphcut";
     const cv::Scalar key = EstimateBackdropColour(Bgr(image), roi);
     return ChromaOf(key[0], key[1], key[2]).norm() >= kColouredBackdropChroma ? "chroma"
-                                                                               : "graphcut";
+                                                                              : "graphcut";
   }
 
   static Expected<void> CheckBackground(const cv::Mat& image, const cv::Mat& background) {
@@ -318,7 +315,8 @@ std::expected<void, Problem> FindProblem(const SegmentOptions& options) {
                                          options.method));
   }
   if (!options.backdrop_bgr.empty()) {
-    if (options.backdrop_bgr.size() != 3) return Invalid("backdrop_bgr", "needs three numbers, B G R");
+    if (options.backdrop_bgr.size() != 3)
+      return Invalid("backdrop_bgr", "needs three numbers, B G R");
     for (double c : options.backdrop_bgr) {
       if (!(c >= 0.0 && c <= 255.0)) {
         return Invalid("backdrop_bgr", "each value must lie in [0, 255]");
@@ -327,8 +325,8 @@ std::expected<void, Problem> FindProblem(const SegmentOptions& options) {
   }
   if (options.refine_max_side_px != 0 &&
       (options.refine_max_side_px < 32 || options.refine_max_side_px > 8192)) {
-    return Invalid("refine_max_side_px", fmt::format("{} is not 0 or in [32, 8192]",
-                                                     options.refine_max_side_px));
+    return Invalid("refine_max_side_px",
+                   fmt::format("{} is not 0 or in [32, 8192]", options.refine_max_side_px));
   }
   if (options.backdrop != "dark" && options.backdrop != "light") {
     return Invalid("backdrop",

@@ -55,15 +55,17 @@ std::string ProblemOf(const cv::Mat& mask) {
   if (area == 0) return "no object found (the frame looks like the backdrop everywhere)";
   const double share = area / static_cast<double>(mask.total());
   if (share > kMaxObjectShare) {
-    return fmt::format("the object covers {:.0f} % of the frame: the backdrop was probably taken "
-                       "for object",
-                       100.0 * share);
+    return fmt::format(
+        "the object covers {:.0f} % of the frame: the backdrop was probably taken "
+        "for object",
+        100.0 * share);
   }
   const double outline = OutlineObjectShare(mask);
   if (outline > 0.5) {
-    return fmt::format("the mask touches {:.0f} % of the frame's edge: the backdrop was probably "
-                       "taken for object",
-                       100.0 * outline);
+    return fmt::format(
+        "the mask touches {:.0f} % of the frame's edge: the backdrop was probably "
+        "taken for object",
+        100.0 * outline);
   }
   return {};
 }
@@ -154,8 +156,8 @@ cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::
                       int margin_px, const cv::Scalar& fallback) {
   const cv::Size size = frames.front().size();
   std::vector<cv::Mat> free;
-  const cv::Mat kernel = cv::getStructuringElement(
-      cv::MORPH_ELLIPSE, cv::Size(2 * margin_px + 1, 2 * margin_px + 1));
+  const cv::Mat kernel =
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin_px + 1, 2 * margin_px + 1));
   for (const cv::Mat& mask : masks) {
     cv::Mat grown;
     cv::dilate(mask, grown, kernel);
@@ -173,8 +175,8 @@ cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::
         for (int k = 0; k < 3; ++k) values[k].push_back(c[k]);
       }
       for (int k = 0; k < 3; ++k) {
-        o[x][k] = values[k].empty() ? cv::saturate_cast<std::uint8_t>(fallback[k])
-                                    : Median(values[k]);
+        o[x][k] =
+            values[k].empty() ? cv::saturate_cast<std::uint8_t>(fallback[k]) : Median(values[k]);
       }
     }
   }
@@ -186,9 +188,9 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   if (frames.empty()) return MakeError(ErrorCode::kBadInput, "segmentation: no image");
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (frames[i].type() != CV_8UC3 || frames[i].size() != frames.front().size()) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("segmentation: image {} is not 8-bit BGR of the set's size",
-                                   i + 1));
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("segmentation: image {} is not 8-bit BGR of the set's size", i + 1));
     }
   }
   if (Expected<std::unique_ptr<Segmenter>> check = CreateSegmenter(options); !check) {
@@ -197,7 +199,8 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   SetSegmentation result;
   result.survey = SurveyBackdrop(frames);
   const BackdropSurvey& survey = result.survey;
-  const bool still = frames.size() >= kMinStillFrames && survey.outline_stillness >= kStillOutline &&
+  const bool still = frames.size() >= kMinStillFrames &&
+                     survey.outline_stillness >= kStillOutline &&
                      survey.outline_stillness - survey.outline_uniformity >= kStillGain;
   SegmentOptions run = options;
   result.method = options.method;
@@ -214,17 +217,17 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
       result.reason = seen + ": a coloured backdrop, keyed out by its chroma";
     } else if (still) {
       result.method = "background";
-      result.reason = seen + ": the camera stands still, so the backdrop is learned from the "
-                             "sequence (per-pixel median of the frames where graphcut saw no "
-                             "object) and the difference refined by a graph cut";
+      result.reason = seen +
+                      ": the camera stands still, so the backdrop is learned from the "
+                      "sequence (per-pixel median of the frames where graphcut saw no "
+                      "object) and the difference refined by a graph cut";
     } else {
       result.method = "graphcut";
-      result.reason = seen + ": " +
-                      (survey.outline_stillness >= kStillOutline
-                           ? "an even backdrop"
-                           : "the camera moves") +
-                      ", so each frame is cut against the backdrop's colour (graph cut seeded by "
-                      "the colour distance)";
+      result.reason =
+          seen + ": " +
+          (survey.outline_stillness >= kStillOutline ? "an even backdrop" : "the camera moves") +
+          ", so each frame is cut against the backdrop's colour (graph cut seeded by "
+          "the colour distance)";
     }
   }
   run.method = result.method;

@@ -42,8 +42,8 @@ struct SetSegmentation {
   std::string method;  // the method that made the masks (never "auto")
   std::string reason;  // why it was picked (auto), or "given"
   BackdropSurvey survey;
-  std::vector<cv::Mat> masks;          // one per frame, CV_8UC1 0/255
-  std::vector<std::string> problems;   // one per frame: empty, or what is wrong with its mask
+  std::vector<cv::Mat> masks;         // one per frame, CV_8UC1 0/255
+  std::vector<std::string> problems;  // one per frame: empty, or what is wrong with its mask
 };
 
 // Segments every frame. method = auto picks, from the survey: a coloured backdrop: chroma; a

@@ -53,13 +53,13 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
     const cv::Mat others = RenderSilhouette(hull.ExtractSurface(), views[i]);
     result.agreement.push_back(MaskIoU(masks[i], others));
     // The coarse hull's surface may lie up to half a voxel inside the true one.
-    const int radius = std::max(
-        options.tolerance_px,
-        static_cast<int>(std::ceil(0.5 * VoxelSpanPx(views[i], middle, grid->voxel_mm))));
+    const int radius =
+        std::max(options.tolerance_px,
+                 static_cast<int>(std::ceil(0.5 * VoxelSpanPx(views[i], middle, grid->voxel_mm))));
     cv::Mat allowed;
-    cv::dilate(others, allowed,
-               cv::getStructuringElement(cv::MORPH_ELLIPSE,
-                                         cv::Size(2 * radius + 1, 2 * radius + 1)));
+    cv::dilate(
+        others, allowed,
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
     result.masks.push_back(masks[i] & allowed);
   }
   return result;

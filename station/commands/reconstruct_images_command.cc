@@ -115,9 +115,9 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   } else {
     report["segmentation"] = {
         {"method", photos ? "threshold" : "none (binary silhouettes)"},
-        {"reason", photos ? fmt::format("--segment threshold: any channel above {}",
-                                        options.threshold)
-                          : "the images are silhouettes already"}};
+        {"reason", photos
+                       ? fmt::format("--segment threshold: any channel above {}", options.threshold)
+                       : "the images are silhouettes already"}};
   }
   if (Expected<void> written = WriteMasks(options.out, names, frames, masks); !written) {
     return std::unexpected(written.error());

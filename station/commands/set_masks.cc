@@ -1,7 +1,6 @@
 #include "station/commands/set_masks.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <ostream>
 
 #include <fmt/format.h>
@@ -59,10 +58,10 @@ Expected<capture::SegmentOptions> ImagesSegmentOptions(
   }
   if (!method.empty()) options.method = method;
   if (Expected<std::unique_ptr<capture::Segmenter>> ok = capture::CreateSegmenter(options); !ok) {
-    return std::unexpected(Error{ErrorCode::kBadInput,
-                                 method.empty() ? ok.error().message
-                                                : fmt::format("--segment {}: {}", method,
-                                                              ok.error().message)});
+    return std::unexpected(Error{
+        ErrorCode::kBadInput, method.empty()
+                                  ? ok.error().message
+                                  : fmt::format("--segment {}: {}", method, ok.error().message)});
   }
   return options;
 }
@@ -73,26 +72,22 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
   if (!segmented) return std::unexpected(segmented.error());
   SetMasks result;
   result.masks = std::move(segmented->masks);
-  if (const char* d = std::getenv("SEG_RAW_DIR")) {
-    for (std::size_t i = 0; i < result.masks.size(); ++i) cv::imwrite(fmt::format("{}/{:02d}.png", d, i + 1), result.masks[i]);
-  }
   result.problems = std::move(segmented->problems);
   const capture::BackdropSurvey& survey = segmented->survey;
   out << fmt::format("segmentation: {} ({})\n", segmented->method,
                      options.method == "auto" ? segmented->reason : "as configured");
   Logger("station")->info("reconstruct --images: segmentation {}: {}", segmented->method,
                           segmented->reason);
-  result.report = {
-      {"method", segmented->method},
-      {"requested", options.method},
-      {"reason", segmented->reason},
-      {"backdrop",
-       {{"kind", survey.kind},
-        {"bgr", {survey.bgr[0], survey.bgr[1], survey.bgr[2]}},
-        {"luma", survey.luma},
-        {"chroma", survey.chroma},
-        {"outline_stillness", survey.outline_stillness},
-        {"outline_uniformity", survey.outline_uniformity}}}};
+  result.report = {{"method", segmented->method},
+                   {"requested", options.method},
+                   {"reason", segmented->reason},
+                   {"backdrop",
+                    {{"kind", survey.kind},
+                     {"bgr", {survey.bgr[0], survey.bgr[1], survey.bgr[2]}},
+                     {"luma", survey.luma},
+                     {"chroma", survey.chroma},
+                     {"outline_stillness", survey.outline_stillness},
+                     {"outline_uniformity", survey.outline_uniformity}}}};
   return result;
 }
 
@@ -108,7 +103,8 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   }
   std::vector<cv::Mat> tiles;
   for (std::size_t i = 0; i < masks.size(); ++i) {
-    const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
+    const cv::Mat mask =
+        masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
     const std::filesystem::path path =
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
     if (Expected<void> w = WritePng(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1}); !w) return w;
@@ -138,7 +134,7 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
     usable_masks.push_back(masks[i]);
     usable_views.push_back(views[i]);
   }
-  if (usable.size() < 3 || std::getenv("SEG_NO_CONSENSUS")) return agreement;
+  if (usable.size() < 3) return agreement;
   Expected<reconstruct::SilhouetteConsensus> consensus =
       reconstruct::ConsensusOfSilhouettes(usable_masks, usable_views, box_min, box_max);
   if (!consensus) return std::unexpected(consensus.error());
@@ -147,9 +143,10 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
     const std::size_t i = usable[k];
     agreement[i] = consensus->agreement[k];
     if (agreement[i] < kMinConsensus && agreement[i] < median - kConsensusMargin) {
-      problems[i] = fmt::format("its mask disagrees with the hull of the other views (IoU "
-                                "{:.3f}, median {:.3f})",
-                                agreement[i], median);
+      problems[i] = fmt::format(
+          "its mask disagrees with the hull of the other views (IoU "
+          "{:.3f}, median {:.3f})",
+          agreement[i], median);
       continue;
     }
     masks[i] = consensus->masks[k];
@@ -169,18 +166,18 @@ nlohmann::json JudgeViews(const std::vector<std::string>& names, const std::vect
   const double median = Median(used);
   nlohmann::json views = nlohmann::json::array();
   for (std::size_t i = 0; i < names.size(); ++i) {
-    nlohmann::json view = {{"image", names[i]},
-                           {"mask_area_px", cv::countNonZero(masks[i])},
-                           {"hull_iou", iou[i]}};
+    nlohmann::json view = {
+        {"image", names[i]}, {"mask_area_px", cv::countNonZero(masks[i])}, {"hull_iou", iou[i]}};
     const bool disagrees = problems[i].empty() && (iou[i] < min_iou || iou[i] < median - 0.05);
     view["disagrees"] = disagrees || !problems[i].empty();
     if (!problems[i].empty()) {
       view["left_out"] = problems[i];
       out << fmt::format("warning: {}: left out of the carving: {}\n", names[i], problems[i]);
     } else if (disagrees) {
-      out << fmt::format("warning: {}: its mask disagrees with the model the other views carve "
-                         "(IoU {:.3f}, median {:.3f}); check masks/{}.png\n",
-                         names[i], iou[i], median, std::filesystem::path(names[i]).stem().string());
+      out << fmt::format(
+          "warning: {}: its mask disagrees with the model the other views carve "
+          "(IoU {:.3f}, median {:.3f}); check masks/{}.png\n",
+          names[i], iou[i], median, std::filesystem::path(names[i]).stem().string());
     }
     views.push_back(std::move(view));
   }

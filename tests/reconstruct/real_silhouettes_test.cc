@@ -117,9 +117,10 @@ TEST_P(RealSilhouettes, DefaultOptionsMeetTheReferenceSilhouettes) {
   }
   ASSERT_GT(count, 0);
   const double mean = sum / count;
-  std::cout << fmt::format("{}: mean IoU against the reference silhouettes {:.4f} ({} views); "
-                           "own masks against the model {:.4f}\n",
-                           set.folder, mean, count, own);
+  std::cout << fmt::format(
+      "{}: mean IoU against the reference silhouettes {:.4f} ({} views); "
+      "own masks against the model {:.4f}\n",
+      set.folder, mean, count, own);
   EXPECT_GE(mean, set.min_mean_iou);
   EXPECT_GE(own, 0.95);
 }
@@ -128,8 +129,8 @@ INSTANTIATE_TEST_SUITE_P(
     Middlebury, RealSilhouettes,
     ::testing::Values(RealSet{"middlebury-dinoSparseRing", "dinoSparseRing", "dinoSR_par.txt",
                               "dinoSR_good_silhouette_images.txt", 0.975},
-                      RealSet{"middlebury-templeSparseRing", "templeSparseRing",
-                              "templeSR_par.txt", "", 0.95}),
+                      RealSet{"middlebury-templeSparseRing", "templeSparseRing", "templeSR_par.txt",
+                              "", 0.95}),
     [](const ::testing::TestParamInfo<RealSet>& p) { return p.param.reference; });
 
 }  // namespace
