@@ -13,6 +13,10 @@ namespace {
 // level to the local object level: below half, so pixels the object partly covers count as
 // object (a hull carved from masks must not lose the object's rim).
 constexpr float kEdgeFraction = 0.35f;
+// The trimap's "probably object" starts this fraction of the way from the backdrop level to the
+// object level: deep shadows on the object (a fifth of its brightness) start as object, and the
+// colour models decide.
+constexpr double kProbableFraction = 0.3;
 
 cv::Mat Disc(int radius_px) {
   return cv::getStructuringElement(cv::MORPH_ELLIPSE,
@@ -86,7 +90,7 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
 
 cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
                         const GraphCutOptions& options) {
-  const double middle = 0.5 * (levels.object + levels.backdrop);
+  const double middle = levels.backdrop + kProbableFraction * (levels.object - levels.backdrop);
   cv::Mat trimap(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
   trimap.setTo(cv::GC_PR_FGD, score > middle);
   const cv::Mat above = score > levels.object;

@@ -29,7 +29,8 @@ struct GraphCutOptions {
 
 // The trimap as grabCut labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the
 // score's size: score > object eroded by 2 px: GC_FGD; <= backdrop eroded by 2 px, or on the
-// border ring and not above object: GC_BGD; above the mid level: GC_PR_FGD; else GC_PR_BGD.
+// border ring and not above object: GC_BGD; above 30 % of the way from backdrop to object:
+// GC_PR_FGD; else GC_PR_BGD.
 // `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
 cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
                         const GraphCutOptions& options);

@@ -141,7 +141,7 @@ struct SceneCase {
 class RealisticBackdrops : public ::testing::TestWithParam<SceneCase> {};
 
 TEST_P(RealisticBackdrops, GraphCutAndAutoHoldWhereAThresholdFails) {
-  for (const std::string object : {"vase", "torus", "cone"}) {
+  for (const std::string object : {"vase", "cylinder", "cone"}) {
     const Frame frame = MakeScene(GetParam().scene, object, 30.0);
     ASSERT_FALSE(frame.image.empty());
     const double otsu = SegmentIoU(frame, "otsu");
