@@ -23,9 +23,19 @@ struct SegmentOptions {
   // background: colour distance to a frame of the empty scene (any backdrop; the plate and the
   //             fixtures are in the background frame, so they never count).
   // chroma:     distance from the backdrop's chroma (a green or blue screen).
+  // graphcut:   any plain backdrop (dark, light, uneven, with a stand or shadows): the colour
+  //             distance to the backdrop (the frame outline's median colour) seeds a trimap, and
+  //             a graph cut (OpenCV grabCut, colour models of object and backdrop) decides the
+  //             rest at reduced size, the edge placed again at full size
+  //             (capture/segment/graph_cut.h). Slower (<= 60 ms a 1280x960 frame).
+  // auto:       picks one of the above per frame (Segment) or per set (SegmentImageSet, which
+  //             also learns the backdrop from the sequence): a background frame given: background
+  //             refined; else a coloured backdrop: chroma; else graphcut.
   std::string method = "otsu";
-  std::string backdrop = "dark";  // otsu, fixed: dark (object brighter) | light (object darker)
-  int threshold = 128;            // fixed: grey level separating object and backdrop
+  // otsu, fixed, graphcut: dark (object brighter) | light (object darker). graphcut and auto
+  // measure the backdrop's colour themselves and use this only for otsu and fixed.
+  std::string backdrop = "dark";
+  int threshold = 128;  // fixed: grey level separating object and backdrop
   // otsu: when the two classes' mean grey levels differ by less than this, the frame holds no
   // object (an empty scene) and the mask is empty. background: the least automatic threshold.
   double min_contrast = 16.0;
@@ -40,6 +50,9 @@ struct SegmentOptions {
   // chroma: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
   // the region of interest's outline (which must show backdrop).
   std::vector<double> chroma_key_bgr;
+  // graphcut: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
+  // the region of interest's outline (SegmentImageSet: over all the set's outlines).
+  std::vector<double> backdrop_bgr;
   // chroma: a pixel is backdrop when its chroma, projected on the key's, reaches this fraction
   // of the key's chroma (0.5 cuts anti-aliased edges at half coverage for neutral objects).
   double chroma_fraction = 0.5;
@@ -58,6 +71,11 @@ struct SegmentOptions {
   bool keep_largest = true;  // keep only the largest 8-connected component
   bool fill_holes = true;    // fill holes in the silhouette
   int max_hole_area_px = 0;  // holes larger than this stay open (a mug's handle); 0: no limit
+  // background: refine the difference mask with the graph cut (as graphcut does).
+  bool refine = false;
+  // graphcut, refine: the graph cut's image is reduced to at most this many pixels on its longer
+  // side (0: full size); the edge is placed at full size either way.
+  int refine_max_side_px = 320;
 };
 
 // Parses [segment] (the keys above, with their ranges); unknown keys are errors naming
@@ -87,6 +105,14 @@ Expected<std::unique_ptr<Segmenter>> CreateSegmenter(const SegmentOptions& optio
 // The region of interest as a CV_8UC1 mask of `size` (255 inside): roi_px and roi_polygon_px
 // minus exclude_px.
 cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size);
+
+// The objectness score of a frame against a backdrop colour (CV_8UC1): the Euclidean BGR
+// distance, saturated at 255. With `shadows`, a pixel whose colour is the backdrop's scaled by
+// 0.35..1.1 (a shadow or a brighter fold of the same cloth) scores only its chroma distortion,
+// twice |c - a b| for the best scale a: a soft shadow on a light or coloured backdrop is not
+// object. Contract: `bgr` CV_8UC3; `backdrop_bgr` a scalar (per frame) or a CV_8UC3 frame of the
+// same size (per pixel).
+cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows);
 
 // The backdrop colour (B, G, R) a chroma segmenter estimates: the per-channel median of the
 // pixels on the outline of the region of interest's bounding rectangle. Contract: CV_8UC3.

@@ -346,6 +346,7 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
       } else {
         image.image = *pixels;
       }
+      if (!options.segment_photos) continue;
       image.mask = SegmentPhoto(image.image, options.segmentation);
     }
     if (cv::countNonZero(image.mask) == 0) {

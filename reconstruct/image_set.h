@@ -46,6 +46,9 @@ struct ImageSetOptions {
   std::string pattern;     // empty: every image file of the folder, in name order
   double step_deg = 10.0;  // angle between consecutive stops (> 0)
   PhotoSegmentation segmentation;
+  // false: photos are loaded with an empty mask, for the caller to segment
+  // (capture::SegmentImageSet); silhouettes keep theirs.
+  bool segment_photos = true;
 };
 
 enum class ImageKind { kSilhouette, kPhoto };
@@ -58,7 +61,7 @@ struct SetImage {
   int index = 0;
   double angle_deg = 0.0;  // index * step_deg
   cv::Mat image;           // CV_8UC3 BGR for photos; empty for silhouettes
-  cv::Mat mask;            // CV_8UC1, 255 = object
+  cv::Mat mask;            // CV_8UC1, 255 = object (empty: a photo not segmented here)
 };
 
 struct ImageSet {

@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/segment/graph_cut.h"
 #include "capture/segment/mask_ops.h"
 
 namespace revolve::capture {
@@ -17,6 +19,12 @@ constexpr int kMaxMorphologyRadiusPx = 50;
 constexpr int kMaxCoordinatePx = 1 << 20;
 // A chroma key whose chroma (|Cb, Cr| in 8-bit units) is weaker than this is grey: no key.
 constexpr double kMinKeyChroma = 12.0;
+// auto: a backdrop whose chroma reaches this is coloured (a chroma key); below it, grey.
+constexpr double kColouredBackdropChroma = 30.0;
+// auto: a backdrop brighter than this (luma) shows soft shadows worth the shadow model.
+constexpr double kShadowModelMinLuma = 60.0;
+// graphcut: holes of at most this many pixels are filled whatever they show.
+constexpr int kMinOpenHolePx = 16;
 
 Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
   if (image.empty())
@@ -88,23 +96,109 @@ class PipelineSegmenter final : public Segmenter {
   Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const override {
     if (auto ok = CheckImage(image, "image"); !ok) return std::unexpected(ok.error());
     const cv::Mat roi = RegionOfInterestMask(options_, image.size());
+    std::string method = options_.method;
+    if (method == "auto") method = AutoMethod(image, background, roi);
     Expected<cv::Mat> raw = cv::Mat();
-    if (options_.method == "otsu" || options_.method == "fixed") {
+    std::optional<ScoredLevels> scored;
+    if (method == "otsu" || method == "fixed") {
       raw = Threshold(image, roi);
-    } else if (options_.method == "background") {
-      raw = Difference(image, background, roi);
+    } else if (method == "background") {
+      if (options_.refine || options_.method == "auto") {
+        if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
+        scored = GraphCut(Bgr(image), Bgr(background), false, roi);
+        raw = scored->mask;
+      } else {
+        raw = Difference(image, background, roi);
+      }
+    } else if (method == "graphcut") {
+      const cv::Mat bgr = Bgr(image);
+      const cv::Scalar key = options_.backdrop_bgr.size() == 3
+                                 ? cv::Scalar(options_.backdrop_bgr[0], options_.backdrop_bgr[1],
+                                              options_.backdrop_bgr[2])
+                                 : EstimateBackdropColour(bgr, roi);
+      scored = GraphCut(bgr, cv::Mat(1, 1, CV_8UC3, key), Luma(key) >= kShadowModelMinLuma, roi);
+      raw = scored->mask;
     } else {
       raw = Chroma(image, roi);
     }
     if (!raw) return raw;
-    cv::Mat mask = *raw & roi;
+    return CleanUp(*raw, roi, scored ? &*scored : nullptr);
+  }
+
+  // Segments with a graph cut seeded by the distance to `backdrop` (a 1x1 colour or a frame):
+  // the mask before clean-up, the score and its levels.
+  struct ScoredLevels {
+    cv::Mat mask;
+    cv::Mat score;
+    ScoreLevels levels;
+  };
+  ScoredLevels GraphCut(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
+                        const cv::Mat& roi) const {
+    ScoredLevels out;
+    out.score = BackdropDistance(bgr, backdrop, shadows);
+    const OtsuSplit split = Otsu(out.score, roi);
+    if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
+      out.mask = cv::Mat::zeros(bgr.size(), CV_8UC1);
+      return out;
+    }
+    out.levels = {static_cast<double>(split.threshold), split.low_mean};
+    GraphCutOptions cut;
+    cut.max_side_px = options_.refine_max_side_px;
+    out.mask =
+        RefineWithGraphCut(bgr, out.score, TrimapFromScore(out.score, out.levels, roi, cut), cut);
+    return out;
+  }
+
+  // The clean-up every method ends with (see segmenter.h).
+  cv::Mat CleanUp(const cv::Mat& raw, const cv::Mat& roi, const ScoredLevels* scored) const {
+    cv::Mat mask = raw & roi;
     mask = CloseMask(OpenMask(mask, options_.open_px), options_.close_px);
     if (options_.keep_largest) mask = KeepLargestComponent(mask);
-    if (options_.fill_holes) mask = FillHolesUpTo(mask, options_.max_hole_area_px);
+    if (options_.fill_holes) {
+      if (scored != nullptr && options_.max_hole_area_px == 0) {
+        const double middle = 0.5 * (scored->levels.object + scored->levels.backdrop);
+        mask = FillHolesUnlessBackdrop(mask, scored->score, middle, kMinOpenHolePx);
+      } else {
+        mask = FillHolesUpTo(mask, options_.max_hole_area_px);
+      }
+    }
     return cv::Mat(mask & roi);
   }
 
  private:
+  static double Luma(const cv::Scalar& bgr) {
+    return 0.299 * bgr[2] + 0.587 * bgr[1] + 0.114 * bgr[0];
+  }
+
+  // auto for one frame: background (refined) when a background frame is given, chroma on a
+  // coloured backdrop, graphcut otherwise.
+  static std::string AutoMethod(const cv::Mat& image, const cv::Mat& background,
+                                const cv::Mat& roi) {
+    if (!background.empty()) return "background";
+    if (image.channels() == 1) return "graphcut";
+    const cv::Scalar key = EstimateBackdropColour(Bgr(image), roi);
+    return ChromaOf(key[0], key[1], key[2]).norm() >= kColouredBackdropChroma ? "chroma"
+                                                                              : "graphcut";
+  }
+
+  static Expected<void> CheckBackground(const cv::Mat& image, const cv::Mat& background) {
+    if (background.empty()) {
+      return MakeError(ErrorCode::kBadInput,
+                       "segmentation: [segment] method = \"background\" needs a frame of the "
+                       "empty scene, and none was given");
+    }
+    if (auto ok = CheckImage(background, "background frame"); !ok) {
+      return std::unexpected(ok.error());
+    }
+    if (background.size() != image.size()) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("segmentation: the background frame is {}x{} but the image is "
+                                   "{}x{}; capture the empty scene again",
+                                   background.cols, background.rows, image.cols, image.rows));
+    }
+    return {};
+  }
+
   Expected<cv::Mat> Threshold(const cv::Mat& image, const cv::Mat& roi) const {
     const cv::Mat grey = GreyLevels(image);
     const bool dark_backdrop = options_.backdrop == "dark";
@@ -126,20 +220,7 @@ class PipelineSegmenter final : public Segmenter {
 
   Expected<cv::Mat> Difference(const cv::Mat& image, const cv::Mat& background,
                                const cv::Mat& roi) const {
-    if (background.empty()) {
-      return MakeError(ErrorCode::kBadInput,
-                       "segmentation: [segment] method = \"background\" needs a frame of the "
-                       "empty scene, and none was given");
-    }
-    if (auto ok = CheckImage(background, "background frame"); !ok) {
-      return std::unexpected(ok.error());
-    }
-    if (background.size() != image.size()) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("segmentation: the background frame is {}x{} but the image is "
-                                   "{}x{}; capture the empty scene again",
-                                   background.cols, background.rows, image.cols, image.rows));
-    }
+    if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
     const cv::Mat distance8 = ColourDistance(Bgr(image), Bgr(background));
     double threshold = options_.difference_threshold;
     if (threshold <= 0.0) {
@@ -228,10 +309,24 @@ std::unexpected<Problem> Invalid(std::string_view key, std::string what) {
 
 std::expected<void, Problem> FindProblem(const SegmentOptions& options) {
   if (options.method != "otsu" && options.method != "fixed" && options.method != "background" &&
-      options.method != "chroma") {
+      options.method != "chroma" && options.method != "graphcut" && options.method != "auto") {
     return Invalid("method", fmt::format("\"{}\" is not one of \"otsu\", \"fixed\", "
-                                         "\"background\", \"chroma\"",
+                                         "\"background\", \"chroma\", \"graphcut\", \"auto\"",
                                          options.method));
+  }
+  if (!options.backdrop_bgr.empty()) {
+    if (options.backdrop_bgr.size() != 3)
+      return Invalid("backdrop_bgr", "needs three numbers, B G R");
+    for (double c : options.backdrop_bgr) {
+      if (!(c >= 0.0 && c <= 255.0)) {
+        return Invalid("backdrop_bgr", "each value must lie in [0, 255]");
+      }
+    }
+  }
+  if (options.refine_max_side_px != 0 &&
+      (options.refine_max_side_px < 32 || options.refine_max_side_px > 8192)) {
+    return Invalid("refine_max_side_px",
+                   fmt::format("{} is not 0 or in [32, 8192]", options.refine_max_side_px));
   }
   if (options.backdrop != "dark" && options.backdrop != "light") {
     return Invalid("backdrop",
@@ -335,6 +430,43 @@ cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size) {
   return roi;
 }
 
+cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows) {
+  const bool per_pixel = backdrop_bgr.size() == bgr.size();
+  cv::Mat out(bgr.size(), CV_8UC1);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    const auto* b = backdrop_bgr.ptr<cv::Vec3b>(per_pixel ? y : 0);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b& k = b[per_pixel ? x : 0];
+      float c[3], d[3];
+      float dot = 0.0f, norm2 = 0.0f, dist2 = 0.0f;
+      for (int i = 0; i < 3; ++i) {
+        c[i] = p[x][i];
+        d[i] = c[i] - float(k[i]);
+        dot += c[i] * float(k[i]);
+        norm2 += float(k[i]) * float(k[i]);
+        dist2 += d[i] * d[i];
+      }
+      float score = std::sqrt(dist2);
+      // A shadow: the backdrop's colour scaled down (or a little up); only its chroma counts.
+      if (shadows && norm2 > 900.0f) {
+        const float a = dot / norm2;
+        if (a >= 0.35f && a <= 1.1f) {
+          float off2 = 0.0f;
+          for (int i = 0; i < 3; ++i) {
+            const float e = c[i] - a * float(k[i]);
+            off2 += e * e;
+          }
+          score = std::min(score, 2.0f * std::sqrt(off2));
+        }
+      }
+      o[x] = cv::saturate_cast<std::uint8_t>(score);
+    }
+  }
+  return out;
+}
+
 cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
   cv::Rect box = cv::boundingRect(roi);
   if (box.area() == 0) box = cv::Rect(0, 0, image.cols, image.rows);
@@ -362,7 +494,8 @@ cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
 
 Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
   SegmentOptions options;
-  auto method = section.String("method", options.method, {"otsu", "fixed", "background", "chroma"});
+  auto method = section.String("method", options.method,
+                               {"otsu", "fixed", "background", "chroma", "graphcut", "auto"});
   if (!method) return std::unexpected(method.error());
   auto backdrop = section.String("backdrop", options.backdrop, {"dark", "light"});
   if (!backdrop) return std::unexpected(backdrop.error());
@@ -407,7 +540,16 @@ Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
   if (!fill_holes) return std::unexpected(fill_holes.error());
   auto max_hole = section.Integer("max_hole_area_px", options.max_hole_area_px, 0, 1 << 30);
   if (!max_hole) return std::unexpected(max_hole.error());
+  auto backdrop_bgr = section.Numbers("backdrop_bgr", {});
+  if (!backdrop_bgr) return std::unexpected(backdrop_bgr.error());
+  options.backdrop_bgr = *backdrop_bgr;
+  auto refine = section.Boolean("refine", options.refine);
+  if (!refine) return std::unexpected(refine.error());
+  auto refine_side = section.Integer("refine_max_side_px", options.refine_max_side_px, 0, 8192);
+  if (!refine_side) return std::unexpected(refine_side.error());
   if (auto ok = section.CheckNoUnknownKeys(); !ok) return std::unexpected(ok.error());
+  options.refine = *refine;
+  options.refine_max_side_px = static_cast<int>(*refine_side);
   options.method = *method;
   options.backdrop = *backdrop;
   options.threshold = static_cast<int>(*threshold);

@@ -18,6 +18,7 @@
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/reconstructor.h"
 #include "station/commands/scan_command.h"
+#include "station/commands/set_masks.h"
 #include "station/timing.h"
 
 namespace revolve::station {
@@ -25,6 +26,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 namespace rc = revolve::reconstruct;
+
+// A view whose mask reprojects below this IoU against the model is flagged in report.json.
+constexpr double kMinAgreeingIoU = 0.9;
 
 nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
@@ -69,10 +73,19 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
 
   // Inputs.
   Clock::time_point t = Clock::now();
+  const bool legacy_threshold = options.segment == "threshold";
+  std::optional<capture::SegmentOptions> segment_options;
+  if (!legacy_threshold) {
+    Expected<capture::SegmentOptions> parsed =
+        ImagesSegmentOptions(options.config, options.segment);
+    if (!parsed) return std::unexpected(parsed.error());
+    segment_options = std::move(*parsed);
+  }
   rc::ImageSetOptions set_options;
   set_options.pattern = options.pattern;
   set_options.step_deg = options.step_deg;
   set_options.segmentation.threshold = options.threshold;
+  set_options.segment_photos = legacy_threshold;
   Expected<rc::ImageSet> set = rc::LoadImageSet(options.images, set_options);
   if (!set) return std::unexpected(set.error());
   const bool photos = set->kind == rc::ImageKind::kPhoto;
@@ -81,11 +94,51 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
                      options.images.string());
   std::vector<std::string> names;
   std::vector<cv::Mat> masks;
+  std::vector<cv::Mat> frames;
   for (const rc::SetImage& image : set->images) {
     names.push_back(image.file_name);
     masks.push_back(image.mask);
+    frames.push_back(image.image);
   }
   times["load_ms"] = MsSince(t);
+
+  // Silhouettes: segmented here (photos), saved for a person to check before anything can fail.
+  t = Clock::now();
+  std::vector<std::string> problems(masks.size());
+  if (photos && !legacy_threshold) {
+    Expected<SetMasks> segmented = SegmentPhotos(frames, *segment_options, out);
+    if (!segmented) return std::unexpected(segmented.error());
+    masks = std::move(segmented->masks);
+    problems = std::move(segmented->problems);
+    report["segmentation"] = segmented->report;
+  } else {
+    report["segmentation"] = {
+        {"method", photos ? "threshold" : "none (binary silhouettes)"},
+        {"reason", photos
+                       ? fmt::format("--segment threshold: any channel above {}", options.threshold)
+                       : "the images are silhouettes already"}};
+  }
+  if (Expected<void> written = WriteMasks(options.out, names, frames, masks); !written) {
+    return std::unexpected(written.error());
+  }
+  times["segment_ms"] = MsSince(t);
+  std::vector<std::size_t> usable;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (problems[i].empty()) usable.push_back(i);
+  }
+  if (usable.size() < 2) {
+    std::string why;
+    for (std::size_t i = 0; i < masks.size(); ++i) {
+      if (!problems[i].empty()) why += fmt::format("\n  {}: {}", names[i], problems[i]);
+    }
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: only {} of {} images gave a usable silhouette (the masks "
+                                 "are in {}):{}",
+                                 options.images.string(), usable.size(), masks.size(),
+                                 (options.out / "masks").string(), why));
+  }
+  std::vector<cv::Mat> usable_masks;
+  for (std::size_t i : usable) usable_masks.push_back(masks[i]);
 
   // Cameras.
   t = Clock::now();
@@ -95,7 +148,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
       {"images", options.images.string()}, {"pattern", options.pattern},
       {"count", set->images.size()},       {"kind", photos ? "photos" : "binary silhouettes"},
       {"width_px", set->width_px},         {"height_px", set->height_px}};
-  if (photos) input["threshold"] = options.threshold;
+  if (photos && legacy_threshold) input["threshold"] = options.threshold;
   if (thesis_mode) {
     for (const rc::SetImage& image : set->images) {
       views.push_back(rc::ThesisView(set->width_px, set->height_px, image.angle_deg));
@@ -144,7 +197,9 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
     report["volume"] = {
         {"source", "--bbox"}, {"min", Vec3Json(box_min)}, {"max", Vec3Json(box_max)}};
   } else {
-    Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(masks, views);
+    std::vector<View> usable_views;
+    for (std::size_t i : usable) usable_views.push_back(views[i]);
+    Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views);
     if (!volume) {
       return std::unexpected(WithContext(volume.error(), "finding the carving volume"));
     }
@@ -158,6 +213,20 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
                         {"unbounded_by_the_views", volume->touches_limit}};
   }
   times["cameras_ms"] = MsSince(t);
+
+  // Every mask against the hull of the other views.
+  t = Clock::now();
+  Expected<std::vector<double>> agreement =
+      ApplyConsensus(masks, views, problems, box_min, box_max, out);
+  if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
+  usable.clear();
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (problems[i].empty()) usable.push_back(i);
+  }
+  if (Expected<void> written = WriteMasks(options.out, names, frames, masks); !written) {
+    return std::unexpected(written.error());
+  }
+  times["consensus_ms"] = MsSince(t);
 
   // Reconstruction.
   t = Clock::now();
@@ -176,7 +245,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   if (options.method == "meridian") {
     rc::MeridianReconstructor meridian(rc::MeridianOptions{options.row_step_px, options.both_sides,
                                                            reconstruct_options.texture_size_px});
-    for (std::size_t i = 0; i < views.size(); ++i) {
+    for (std::size_t i : usable) {
       if (Expected<void> done = meridian.Integrate(masks[i], set->images[i].image, views[i]);
           !done) {
         return std::unexpected(WithContext(done.error(), set->images[i].path.string()));
@@ -189,7 +258,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   } else {
     Expected<std::unique_ptr<rc::Reconstructor>> reconstructor = rc::Create(reconstruct_options);
     if (!reconstructor) return std::unexpected(reconstructor.error());
-    for (std::size_t i = 0; i < views.size(); ++i) {
+    for (std::size_t i : usable) {
       if (Expected<void> done =
               (*reconstructor)->Integrate(masks[i], set->images[i].image, views[i]);
           !done) {
@@ -240,9 +309,11 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
     report["model"]["texture_images"] = meridian_model->mesh.view_texture.images.size();
   }
   const rc::ReprojectionStats reprojection = rc::SilhouetteReprojection(mesh, views, masks);
-  nlohmann::json per_view = nlohmann::json::array();
-  for (std::size_t i = 0; i < views.size(); ++i) {
-    per_view.push_back({{"image", names[i]}, {"iou", reprojection.iou[i]}});
+  nlohmann::json per_view =
+      JudgeViews(names, masks, reprojection.iou, problems, kMinAgreeingIoU, out);
+  for (std::size_t i = 0; i < per_view.size(); ++i) {
+    per_view[i]["iou"] = reprojection.iou[i];
+    per_view[i]["consensus_agreement"] = (*agreement)[i];
   }
   report["reprojection"] = {
       {"mean_iou", reprojection.mean},
@@ -266,6 +337,8 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
       unit, thesis_mode ? " (unscaled)" : "", reprojection.mean, reprojection.min,
       names[static_cast<std::size_t>(reprojection.worst_view)]);
   for (const std::filesystem::path& f : *files) out << "  " << f.string() << "\n";
+  out << "  " << (options.out / "masks").string() << "/, "
+      << (options.out / "contact_sheet.png").string() << "\n";
   out << "  " << (options.out / "report.json").string() << "\n";
   return report;
 }

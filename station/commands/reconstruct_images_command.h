@@ -4,8 +4,12 @@
 // Output in `out` (created when missing; files in it are replaced atomically):
 //   model/model.<format>   one per --formats entry (the meridian method's .wrl is the thesis's
 //                          textured VRML with model_texNN.jpg beside it when the inputs are photos)
-//   report.json            inputs, camera model, units and scale, carving volume, dimensions and
-//                          volume, per-view silhouette reprojection IoU, time per stage
+//   masks/<stem>.png       the mask of every input image (1-bit PNG), as carved
+//   contact_sheet.png      every image with its mask outlined
+//   report.json            inputs, segmentation (method, why, backdrop), camera model, units and
+//                          scale, carving volume, dimensions and volume, per view the mask area,
+//                          the silhouette reprojection IoU and whether the view disagrees or was
+//                          left out (and why), time per stage
 #pragma once
 
 #include <array>
@@ -29,7 +33,13 @@ struct ReconstructImagesOptions {
   std::optional<std::array<double, 6>> bbox;
   std::vector<std::string> formats = {"ply", "wrl"};  // --formats ply,obj,stl,glb,wrl
   std::filesystem::path out;                          // --out DIR (required)
-  // --threshold: photos on black: object where any channel exceeds it (0..254).
+  // --segment: how photos are segmented: a [segment] method (auto, graphcut, background, otsu,
+  // fixed, chroma; capture/segmenter.h) or "threshold" (object where any channel exceeds
+  // --threshold: the old rule for photos on black). Empty: the --config file's method, else auto.
+  std::string segment;
+  // --config FILE: a TOML file whose [segment] table configures the segmentation.
+  std::optional<std::filesystem::path> config;
+  // --threshold: with --segment threshold: object where any channel exceeds it (0..254).
   int threshold = 20;
   int row_step_px = 9;      // --row-step: meridian feature points every k-th row (h_RANGE)
   bool both_sides = false;  // --both-sides: meridian from both sides of the axis (T/2 images)

@@ -62,9 +62,16 @@ class StationCommandsImpl final : public StationCommands {
                              "matrices); default: the thesis's calibration-free geometry");
     reconstruct_->add_option("--bbox", bbox_, "With --images: carving volume X0 Y0 Z0 X1 Y1 Z1")
         ->expected(6);
+    reconstruct_->add_option("--segment", images_.segment,
+                             "With --images: segmentation of photos: auto (default), graphcut, "
+                             "background, otsu, fixed, chroma, or threshold (any channel above "
+                             "--threshold)");
+    reconstruct_->add_option("--config", images_config_,
+                             "With --images: a TOML file whose [segment] table configures the "
+                             "segmentation (method auto unless it names one)");
     reconstruct_->add_option("--threshold", images_.threshold,
                              "With --images: photos on black: object where any channel exceeds "
-                             "this (0..254, default 20)");
+                             "this (0..254, default 20; implies --segment threshold)");
     reconstruct_->add_option("--row-step", images_.row_step_px,
                              "With --images, meridian: feature points every k-th row (default 9)");
     reconstruct_->add_flag("--both-sides", images_.both_sides,
@@ -118,6 +125,10 @@ class StationCommandsImpl final : public StationCommands {
       if (resolution_) images_.resolution = *resolution_;
       if (!formats_.empty()) images_.formats = formats_;
       if (cameras_) images_.cameras = *cameras_;
+      if (images_config_) images_.config = *images_config_;
+      if (reconstruct_->count("--threshold") > 0 && images_.segment.empty()) {
+        images_.segment = "threshold";
+      }
       if (bbox_.size() == 6) {
         images_.bbox =
             std::array<double, 6>{bbox_[0], bbox_[1], bbox_[2], bbox_[3], bbox_[4], bbox_[5]};
@@ -129,7 +140,7 @@ class StationCommandsImpl final : public StationCommands {
       return kExitUsage;
     }
     for (const char* option : {"--pattern", "--step-deg", "--cameras", "--bbox", "--threshold",
-                               "--row-step", "--both-sides"}) {
+                               "--segment", "--config", "--row-step", "--both-sides"}) {
       if (reconstruct_->count(option) > 0) {
         err << "revolve reconstruct: " << option << " applies to --images only\n";
         return kExitUsage;
@@ -149,6 +160,7 @@ class StationCommandsImpl final : public StationCommands {
   bool follow_ = false;
   ReconstructCommandOptions recon_;
   ReconstructImagesOptions images_;
+  std::optional<std::filesystem::path> images_config_;
   std::optional<std::filesystem::path> out_;
   std::optional<std::string> method_;
   std::optional<int> resolution_;

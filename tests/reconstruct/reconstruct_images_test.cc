@@ -144,6 +144,64 @@ TEST_F(ReconstructImages, PhotosGiveATexturedVrml) {
   EXPECT_TRUE(fs::exists(dir_ / "out" / "model" / "model_tex00.jpg"));
 }
 
+TEST_F(ReconstructImages, PhotosAreSegmentedAndTheMasksKeptForAPersonToCheck) {
+  // A bottle on an uneven dark cloth; one frame shows only the cloth (a failed shot).
+  const cv::Mat mask = BottleMask();
+  cv::Mat cloth(mask.size(), CV_8UC3);
+  for (int v = 0; v < cloth.rows; ++v) {
+    for (int u = 0; u < cloth.cols; ++u) {
+      const int level =
+          15 + static_cast<int>(25.0 * (1.0 + std::sin(u * 0.05) * std::cos(v * 0.04)));
+      cloth.at<cv::Vec3b>(v, u) = cv::Vec3b(level, level, level + 4);
+    }
+  }
+  for (int k = 0; k < 12; ++k) {
+    cv::Mat photo = cloth.clone();
+    if (k != 5) photo.setTo(cv::Scalar(90, 180, 210), mask);
+    ASSERT_TRUE(
+        cv::imwrite((dir_ / "images" / ("shot_" + std::to_string(k) + ".png")).string(), photo));
+  }
+  ReconstructImagesOptions options = Options();
+  options.pattern = "shot_{index}.png";
+  options.step_deg = 30.0;
+  options.formats = {"ply"};
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  const nlohmann::json report = Report();
+  EXPECT_NE(report["segmentation"]["method"], "auto");
+  EXPECT_EQ(report["segmentation"]["requested"], "auto");
+  EXPECT_FALSE(report["segmentation"]["reason"].get<std::string>().empty());
+  const nlohmann::json& views = report["reprojection"]["per_view"];
+  ASSERT_EQ(views.size(), 12u);
+  for (int k = 0; k < 12; ++k) {
+    const fs::path written = dir_ / "out" / "masks" / ("shot_" + std::to_string(k) + ".png");
+    ASSERT_TRUE(fs::exists(written)) << written;
+    const cv::Mat saved = cv::imread(written.string(), cv::IMREAD_GRAYSCALE);
+    EXPECT_EQ(views[k]["mask_area_px"].get<int>(), cv::countNonZero(saved));
+    if (k == 5) {
+      EXPECT_TRUE(views[k]["disagrees"].get<bool>());
+      EXPECT_FALSE(views[k].value("left_out", "").empty()) << views[k].dump();
+      continue;
+    }
+    EXPECT_FALSE(views[k]["disagrees"].get<bool>()) << views[k].dump();
+    EXPECT_GE(views[k]["hull_iou"].get<double>(), 0.95) << views[k].dump();
+  }
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "contact_sheet.png"));
+  EXPECT_NE(out_.str().find("shot_5.png: left out"), std::string::npos) << out_.str();
+
+  // --segment names an unknown method; --config's [segment] is checked like a scan's.
+  options.segment = "magic";
+  EXPECT_EQ(Run(options), kExitFailed);
+  EXPECT_NE(err_.str().find("magic"), std::string::npos) << err_.str();
+  options.segment.clear();
+  std::ofstream(dir_ / "seg.toml") << "[segment]\nmethod = \"graphcut\"\nopen_px = 99\n";
+  options.config = dir_ / "seg.toml";
+  EXPECT_EQ(Run(options), kExitFailed);
+  EXPECT_NE(err_.str().find("open_px"), std::string::npos) << err_.str();
+  std::ofstream(dir_ / "seg.toml") << "[segment]\nmethod = \"graphcut\"\n";
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  EXPECT_EQ(Report()["segmentation"]["method"], "graphcut");
+}
+
 TEST_F(ReconstructImages, ImportedProjectionMatricesOfAnySign) {
   // The thesis views written as 3x4 matrices, every other one negated: the sign is fixed from
   // the silhouettes' centre, and the hull comes out as with thesis mode.

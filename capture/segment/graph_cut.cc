@@ -1,0 +1,195 @@
+#include "capture/segment/graph_cut.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+namespace revolve::capture {
+namespace {
+
+// The edge is placed where the score has risen this fraction of the way from the local backdrop
+// level to the local object level: below half, so pixels the object partly covers count as
+// object (a hull carved from masks must not lose the object's rim).
+constexpr float kEdgeFraction = 0.35f;
+// The trimap's "probably object" starts this fraction of the way from the backdrop level to the
+// object level: deep shadows on the object (a fifth of its brightness) start as object, and the
+// colour models decide.
+constexpr double kProbableFraction = 0.3;
+
+cv::Mat Disc(int radius_px) {
+  return cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                   cv::Size(2 * radius_px + 1, 2 * radius_px + 1));
+}
+
+cv::Mat Eroded(const cv::Mat& mask, int radius_px) {
+  cv::Mat out;
+  cv::erode(mask, out, Disc(radius_px));
+  return out;
+}
+
+cv::Mat Dilated(const cv::Mat& mask, int radius_px) {
+  cv::Mat out;
+  cv::dilate(mask, out, Disc(radius_px));
+  return out;
+}
+
+// Scales a trimap down without promoting any pixel to "sure": a reduced pixel is sure object
+// (backdrop) only when every full-size pixel it covers is.
+cv::Mat ReduceTrimap(const cv::Mat& trimap, cv::Size size, int radius_px) {
+  const cv::Mat sure_fg = Eroded(trimap == cv::GC_FGD, radius_px);
+  const cv::Mat sure_bg = Eroded(trimap == cv::GC_BGD, radius_px);
+  const cv::Mat probable_fg = trimap == cv::GC_PR_FGD;
+  cv::Mat labels(trimap.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
+  labels.setTo(cv::GC_PR_FGD, probable_fg | (trimap == cv::GC_FGD));
+  labels.setTo(cv::GC_FGD, sure_fg);
+  labels.setTo(cv::GC_BGD, sure_bg);
+  cv::Mat small;
+  cv::resize(labels, small, size, 0.0, 0.0, cv::INTER_NEAREST);
+  return small;
+}
+
+// In a band around the edge of `mask`, each pixel decided by its score against the mean of the
+// nearby inside and outside scores.
+cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
+  const cv::Mat inside = Eroded(mask, radius_px + 1);
+  const cv::Mat outside = ~Dilated(mask, radius_px + 1);
+  const cv::Mat band = Dilated(mask, radius_px) & ~Eroded(mask, radius_px);
+  cv::Mat score_f;
+  score.convertTo(score_f, CV_32F);
+  cv::Mat in_f, out_f;
+  inside.convertTo(in_f, CV_32F, 1.0 / 255.0);
+  outside.convertTo(out_f, CV_32F, 1.0 / 255.0);
+  const cv::Size window(4 * radius_px + 3, 4 * radius_px + 3);
+  cv::Mat in_sum, in_count, out_sum, out_count;
+  cv::boxFilter(score_f.mul(in_f), in_sum, CV_32F, window, {-1, -1}, false);
+  cv::boxFilter(in_f, in_count, CV_32F, window, {-1, -1}, false);
+  cv::boxFilter(score_f.mul(out_f), out_sum, CV_32F, window, {-1, -1}, false);
+  cv::boxFilter(out_f, out_count, CV_32F, window, {-1, -1}, false);
+  cv::Mat out = mask.clone();
+  for (int y = 0; y < mask.rows; ++y) {
+    const auto* b = band.ptr<std::uint8_t>(y);
+    const auto* s = score_f.ptr<float>(y);
+    const auto* is = in_sum.ptr<float>(y);
+    const auto* ic = in_count.ptr<float>(y);
+    const auto* os = out_sum.ptr<float>(y);
+    const auto* oc = out_count.ptr<float>(y);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (!b[x] || ic[x] < 0.5f || oc[x] < 0.5f) continue;
+      const float outside_level = os[x] / oc[x];
+      const float middle = outside_level + kEdgeFraction * (is[x] / ic[x] - outside_level);
+      o[x] = s[x] >= middle ? 255 : 0;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
+                        const GraphCutOptions& options) {
+  const double middle = levels.backdrop + kProbableFraction * (levels.object - levels.backdrop);
+  cv::Mat trimap(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
+  trimap.setTo(cv::GC_PR_FGD, score > middle);
+  const cv::Mat above = score > levels.object;
+  trimap.setTo(cv::GC_FGD, Eroded(above, 2));
+  trimap.setTo(cv::GC_BGD, Eroded(score <= levels.backdrop, 2));
+  const int ring = std::max(
+      1, static_cast<int>(std::lround(options.border_fraction * std::min(score.cols, score.rows))));
+  cv::Mat border(score.size(), CV_8UC1, cv::Scalar(255));
+  if (score.cols > 2 * ring && score.rows > 2 * ring) {
+    border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
+  }
+  trimap.setTo(cv::GC_BGD, border & ~above);
+  if (!roi.empty()) trimap.setTo(cv::GC_BGD, roi == 0);
+  return trimap;
+}
+
+cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::Mat& trimap,
+                           const GraphCutOptions& options) {
+  const cv::Mat fallback = (trimap == cv::GC_FGD) | (trimap == cv::GC_PR_FGD);
+  const int side = std::max(bgr.cols, bgr.rows);
+  const double scale = options.max_side_px > 0 && side > options.max_side_px
+                           ? double(options.max_side_px) / side
+                           : 1.0;
+  const int radius = scale < 1.0 ? static_cast<int>(std::ceil(1.0 / scale)) : 0;
+  cv::Mat small_bgr = bgr;
+  cv::Mat labels = trimap.clone();
+  if (scale < 1.0) {
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(bgr.cols * scale))),
+                        std::max(1, static_cast<int>(std::lround(bgr.rows * scale))));
+    cv::resize(bgr, small_bgr, size, 0.0, 0.0, cv::INTER_AREA);
+    labels = ReduceTrimap(trimap, size, radius);
+  }
+  const bool has_fg = cv::countNonZero((labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD)) > 0;
+  const bool has_bg = cv::countNonZero((labels == cv::GC_BGD) | (labels == cv::GC_PR_BGD)) > 0;
+  if (!has_fg || !has_bg) return fallback;
+  // Only the rectangle around the undecided and object labels (with a margin of backdrop for
+  // its colour model) goes through the cut; the rest is backdrop for sure.
+  const cv::Rect undecided = cv::boundingRect(labels != cv::GC_BGD);
+  const int margin = std::max(8, std::max(undecided.width, undecided.height) / 8);
+  const cv::Rect crop = cv::Rect(undecided.x - margin, undecided.y - margin,
+                                 undecided.width + 2 * margin, undecided.height + 2 * margin) &
+                        cv::Rect(0, 0, labels.cols, labels.rows);
+  cv::Mat cropped_labels = labels(crop).clone();
+  cv::Mat background_model, object_model;
+  try {
+    cv::grabCut(small_bgr(crop), cropped_labels, cv::Rect(), background_model, object_model,
+                options.iterations, cv::GC_INIT_WITH_MASK);
+  } catch (const cv::Exception&) {
+    return fallback;  // too few seeds of one kind for a colour model
+  }
+  cropped_labels.copyTo(labels(crop));
+  cv::Mat object = (labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD);
+  if (scale == 1.0) return object;
+  cv::Mat up;
+  cv::resize(object, up, bgr.size(), 0.0, 0.0, cv::INTER_LINEAR);
+  cv::Mat mask = up >= 128;
+  // The sure labels hold at full size whatever the reduced cut did.
+  mask.setTo(255, trimap == cv::GC_FGD);
+  mask.setTo(0, trimap == cv::GC_BGD);
+  return PlaceEdge(mask, score, radius);
+}
+
+cv::Mat FillHolesUnlessBackdrop(const cv::Mat& mask, const cv::Mat& score, double backdrop_level,
+                                int min_open_px) {
+  cv::Mat padded;
+  cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::Mat flood = padded.clone();
+  cv::floodFill(flood, cv::Point(0, 0), cv::Scalar(255), nullptr, cv::Scalar(), cv::Scalar(), 4);
+  const cv::Mat holes = ~flood(cv::Rect(1, 1, mask.cols, mask.rows));
+  cv::Mat labels;
+  const int count = cv::connectedComponents(holes, labels, 4, CV_32S);
+  if (count <= 1) return mask;
+  std::vector<std::vector<std::uint8_t>> scores(static_cast<std::size_t>(count));
+  for (int y = 0; y < mask.rows; ++y) {
+    const int* l = labels.ptr<int>(y);
+    const auto* s = score.ptr<std::uint8_t>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (l[x] > 0) scores[static_cast<std::size_t>(l[x])].push_back(s[x]);
+    }
+  }
+  std::vector<std::uint8_t> fill(static_cast<std::size_t>(count), 0);
+  for (int i = 1; i < count; ++i) {
+    auto& v = scores[static_cast<std::size_t>(i)];
+    if (static_cast<int>(v.size()) <= min_open_px) {
+      fill[static_cast<std::size_t>(i)] = 1;
+      continue;
+    }
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    fill[static_cast<std::size_t>(i)] = v[v.size() / 2] > backdrop_level ? 1 : 0;
+  }
+  cv::Mat out = mask.clone();
+  for (int y = 0; y < mask.rows; ++y) {
+    const int* l = labels.ptr<int>(y);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (l[x] > 0 && fill[static_cast<std::size_t>(l[x])]) o[x] = 255;
+    }
+  }
+  return out;
+}
+
+}  // namespace revolve::capture

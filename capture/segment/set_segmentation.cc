@@ -1,0 +1,256 @@
+#include "capture/segment/set_segmentation.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace revolve::capture {
+namespace {
+
+constexpr double kDarkLuma = 80.0;
+constexpr double kLightLuma = 170.0;
+constexpr double kColouredChroma = 30.0;
+constexpr int kStillLevels = 12;
+constexpr double kStillOutline = 0.9;
+constexpr double kStillGain = 0.1;
+constexpr int kMinStillFrames = 4;
+constexpr int kLearnMarginPx = 4;
+constexpr double kMaxObjectShare = 0.6;
+
+template <class T>
+T Median(std::vector<T>& values) {
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
+                   values.end());
+  return values[values.size() / 2];
+}
+
+// The outline ring's pixel positions, every `step`-th.
+std::vector<cv::Point> OutlinePoints(cv::Size size, int step) {
+  std::vector<cv::Point> points;
+  for (int x = 0; x < size.width; x += step) {
+    points.emplace_back(x, 0);
+    points.emplace_back(x, size.height - 1);
+  }
+  for (int y = 1; y + 1 < size.height; y += step) {
+    points.emplace_back(0, y);
+    points.emplace_back(size.width - 1, y);
+  }
+  return points;
+}
+
+// Share of the mask's outline ring that is object.
+double OutlineObjectShare(const cv::Mat& mask) {
+  const std::vector<cv::Point> points = OutlinePoints(mask.size(), 1);
+  std::size_t set = 0;
+  for (const cv::Point& p : points) set += mask.at<std::uint8_t>(p) != 0;
+  return points.empty() ? 0.0 : double(set) / double(points.size());
+}
+
+std::string ProblemOf(const cv::Mat& mask) {
+  const double area = cv::countNonZero(mask);
+  if (area == 0) return "no object found (the frame looks like the backdrop everywhere)";
+  const double share = area / static_cast<double>(mask.total());
+  if (share > kMaxObjectShare) {
+    return fmt::format(
+        "the object covers {:.0f} % of the frame: the backdrop was probably taken "
+        "for object",
+        100.0 * share);
+  }
+  const double outline = OutlineObjectShare(mask);
+  if (outline > 0.5) {
+    return fmt::format(
+        "the mask touches {:.0f} % of the frame's edge: the backdrop was probably "
+        "taken for object",
+        100.0 * outline);
+  }
+  return {};
+}
+
+Expected<cv::Mat> ReadBackground(const SegmentOptions& options, cv::Size size) {
+  if (options.background_file.empty()) return cv::Mat();
+  cv::Mat frame = cv::imread(options.background_file.string(), cv::IMREAD_COLOR);
+  if (frame.empty()) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("[segment] background_file: cannot read {} as an image",
+                                 options.background_file.string()));
+  }
+  if (frame.size() != size) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("[segment] background_file: {} is {}x{} but the images are {}x{}",
+                                 options.background_file.string(), frame.cols, frame.rows,
+                                 size.width, size.height));
+  }
+  return frame;
+}
+
+Expected<std::vector<cv::Mat>> SegmentAll(const std::vector<cv::Mat>& frames,
+                                          const SegmentOptions& options,
+                                          const cv::Mat& background) {
+  Expected<std::unique_ptr<Segmenter>> segmenter = CreateSegmenter(options);
+  if (!segmenter) return std::unexpected(segmenter.error());
+  std::vector<cv::Mat> masks;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    Expected<cv::Mat> mask = (*segmenter)->Segment(frames[i], background);
+    if (!mask) return std::unexpected(WithContext(mask.error(), fmt::format("image {}", i + 1)));
+    masks.push_back(std::move(*mask));
+  }
+  return masks;
+}
+
+}  // namespace
+
+BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
+  BackdropSurvey survey;
+  const cv::Size size = frames.front().size();
+  const std::vector<cv::Point> points = OutlinePoints(size, 2);
+  std::array<std::vector<std::uint8_t>, 3> all;
+  std::size_t still = 0, samples = 0;
+  std::vector<std::array<std::uint8_t, 3>> values(frames.size());
+  for (const cv::Point& p : points) {
+    std::array<std::vector<std::uint8_t>, 3> across;
+    for (const cv::Mat& frame : frames) {
+      const cv::Vec3b c = frame.at<cv::Vec3b>(p);
+      for (int k = 0; k < 3; ++k) {
+        all[k].push_back(c[k]);
+        across[k].push_back(c[k]);
+      }
+    }
+    if (frames.size() < 3) continue;
+    std::array<int, 3> median{};
+    std::array<std::vector<std::uint8_t>, 3> sorted = across;
+    for (int k = 0; k < 3; ++k) median[k] = Median(sorted[k]);
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+      int worst = 0;
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(int(across[k][f]) - median[k]));
+      still += worst <= kStillLevels;
+      ++samples;
+    }
+  }
+  std::array<std::vector<std::uint8_t>, 3> sorted = all;
+  for (int k = 0; k < 3; ++k) survey.bgr[k] = Median(sorted[k]);
+  std::size_t uniform = 0;
+  for (std::size_t i = 0; i < all[0].size(); ++i) {
+    int worst = 0;
+    for (int k = 0; k < 3; ++k) {
+      worst = std::max(worst, std::abs(int(all[k][i]) - static_cast<int>(survey.bgr[k])));
+    }
+    uniform += worst <= kStillLevels;
+  }
+  survey.outline_uniformity = all[0].empty() ? 0.0 : double(uniform) / double(all[0].size());
+  const double b = survey.bgr[0], g = survey.bgr[1], r = survey.bgr[2];
+  survey.luma = 0.299 * r + 0.587 * g + 0.114 * b;
+  survey.chroma = std::hypot(0.564 * (b - survey.luma), 0.713 * (r - survey.luma));
+  survey.outline_stillness = samples > 0 ? double(still) / double(samples) : 0.0;
+  survey.kind = survey.chroma >= kColouredChroma ? "coloured"
+                : survey.luma < kDarkLuma        ? "dark"
+                : survey.luma > kLightLuma       ? "light"
+                                                 : "grey";
+  return survey;
+}
+
+cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::Mat>& masks,
+                      int margin_px, const cv::Scalar& fallback) {
+  const cv::Size size = frames.front().size();
+  std::vector<cv::Mat> free;
+  const cv::Mat kernel =
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin_px + 1, 2 * margin_px + 1));
+  for (const cv::Mat& mask : masks) {
+    cv::Mat grown;
+    cv::dilate(mask, grown, kernel);
+    free.push_back(grown == 0);
+  }
+  cv::Mat out(size, CV_8UC3);
+  std::array<std::vector<std::uint8_t>, 3> values;
+  for (int y = 0; y < size.height; ++y) {
+    auto* o = out.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < size.width; ++x) {
+      for (auto& v : values) v.clear();
+      for (std::size_t f = 0; f < frames.size(); ++f) {
+        if (!free[f].ptr<std::uint8_t>(y)[x]) continue;
+        const cv::Vec3b c = frames[f].ptr<cv::Vec3b>(y)[x];
+        for (int k = 0; k < 3; ++k) values[k].push_back(c[k]);
+      }
+      for (int k = 0; k < 3; ++k) {
+        o[x][k] =
+            values[k].empty() ? cv::saturate_cast<std::uint8_t>(fallback[k]) : Median(values[k]);
+      }
+    }
+  }
+  return out;
+}
+
+Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
+                                          const SegmentOptions& options) {
+  if (frames.empty()) return MakeError(ErrorCode::kBadInput, "segmentation: no image");
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (frames[i].type() != CV_8UC3 || frames[i].size() != frames.front().size()) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("segmentation: image {} is not 8-bit BGR of the set's size", i + 1));
+    }
+  }
+  if (Expected<std::unique_ptr<Segmenter>> check = CreateSegmenter(options); !check) {
+    return std::unexpected(check.error());
+  }
+  SetSegmentation result;
+  result.survey = SurveyBackdrop(frames);
+  const BackdropSurvey& survey = result.survey;
+  const bool still = frames.size() >= kMinStillFrames &&
+                     survey.outline_stillness >= kStillOutline &&
+                     survey.outline_stillness - survey.outline_uniformity >= kStillGain;
+  SegmentOptions run = options;
+  result.method = options.method;
+  result.reason = "given";
+  if (options.method == "auto") {
+    const std::string seen = fmt::format(
+        "a {} backdrop (outline median B G R {:.0f} {:.0f} {:.0f}, luma {:.0f}, chroma {:.0f}); "
+        "{:.0f} % of the outline keeps its colour across the frames, {:.0f} % is within 12 "
+        "levels of the median",
+        survey.kind, survey.bgr[0], survey.bgr[1], survey.bgr[2], survey.luma, survey.chroma,
+        100.0 * survey.outline_stillness, 100.0 * survey.outline_uniformity);
+    if (survey.kind == "coloured") {
+      result.method = "chroma";
+      result.reason = seen + ": a coloured backdrop, keyed out by its chroma";
+    } else if (still) {
+      result.method = "background";
+      result.reason = seen +
+                      ": the camera stands still, so the backdrop is learned from the "
+                      "sequence (per-pixel median of the frames where graphcut saw no "
+                      "object) and the difference refined by a graph cut";
+    } else {
+      result.method = "graphcut";
+      result.reason =
+          seen + ": " +
+          (survey.outline_stillness >= kStillOutline ? "an even backdrop" : "the camera moves") +
+          ", so each frame is cut against the backdrop's colour (graph cut seeded by "
+          "the colour distance)";
+    }
+  }
+  run.method = result.method;
+  if (run.method == "graphcut" && run.backdrop_bgr.empty()) {
+    run.backdrop_bgr = {survey.bgr[0], survey.bgr[1], survey.bgr[2]};
+  }
+  Expected<cv::Mat> background = ReadBackground(options, frames.front().size());
+  if (!background) return std::unexpected(background.error());
+  if (run.method == "background" && background->empty()) {
+    // No frame of the empty scene: learn it from graphcut's masks.
+    SegmentOptions first = run;
+    first.method = "graphcut";
+    first.backdrop_bgr = {survey.bgr[0], survey.bgr[1], survey.bgr[2]};
+    Expected<std::vector<cv::Mat>> rough = SegmentAll(frames, first, cv::Mat());
+    if (!rough) return std::unexpected(rough.error());
+    *background = LearnBackdrop(frames, *rough, kLearnMarginPx, survey.bgr);
+    if (options.method == "auto") run.refine = true;
+  }
+  Expected<std::vector<cv::Mat>> masks = SegmentAll(frames, run, *background);
+  if (!masks) return std::unexpected(masks.error());
+  result.masks = std::move(*masks);
+  for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));
+  return result;
+}
+
+}  // namespace revolve::capture

@@ -1,0 +1,43 @@
+// Silhouette consensus: each view's mask checked against the hull the other views carve. A pixel
+// of view i stays object only if its ray meets the hull of the other views (within a pixel), and
+// each view gets a confidence: how well its mask matches that hull's silhouette.
+//
+// Why: carving trusts every mask completely, so a view that lost part of the object (a shadow
+// cut away) carves it from the model, and a view that took in part of the backdrop (a stand, a
+// cloth) leaves a mask that disagrees with the model. The other views tell both apart.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "base/error.h"
+#include "base/rig.h"
+
+namespace revolve::reconstruct {
+
+struct ConsensusOptions {
+  int resolution = 64;  // voxels along the longest side of the box, per leave-one-out hull
+  // The other views' silhouette is dilated by this, or by half a voxel's projected span if that
+  // is more, before the cut (the coarse hull lies up to half a voxel inside the true one).
+  int tolerance_px = 1;
+};
+
+struct SilhouetteConsensus {
+  // Per view: IoU of its mask with the silhouette of the hull carved by all the other views.
+  std::vector<double> agreement;
+  // Per view: the mask cut to the other views' hull silhouette (dilated, see tolerance_px).
+  std::vector<cv::Mat> masks;
+};
+
+// Contract: masks (CV_8UC1) and views (depth > 0 in front of each camera, i.e. normalised)
+// of one count (>= 3), each mask of its view's size. Errors: bad_input otherwise, or an empty
+// or inverted box.
+Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>& masks,
+                                                     const std::vector<View>& views,
+                                                     const Eigen::Vector3d& box_min,
+                                                     const Eigen::Vector3d& box_max,
+                                                     const ConsensusOptions& options = {});
+
+}  // namespace revolve::reconstruct

@@ -1,0 +1,187 @@
+#include "station/commands/set_masks.h"
+
+#include <algorithm>
+#include <ostream>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "base/atomic_file.h"
+#include "base/log.h"
+#include "capture/segment/set_segmentation.h"
+#include "config/config.h"
+#include "reconstruct/hull/silhouette_consensus.h"
+#include "station/contact_sheet.h"
+
+namespace revolve::station {
+namespace {
+
+Expected<void> WritePng(const std::filesystem::path& path, const cv::Mat& image,
+                        std::vector<int> params = {}) {
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png, params)) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("{}: cannot encode the image as PNG", path.string()));
+  }
+  return WriteFileAtomically(
+      path, std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+constexpr double kMinConsensus = 0.85;
+constexpr double kConsensusMargin = 0.15;
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2),
+                   values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+Expected<capture::SegmentOptions> ImagesSegmentOptions(
+    const std::optional<std::filesystem::path>& config, const std::string& method) {
+  capture::SegmentOptions options;
+  options.method = "auto";
+  if (config) {
+    Expected<config::Document> document = config::LoadFile(*config);
+    if (!document) return std::unexpected(document.error());
+    const config::Section root = config::Section::Root(*document);
+    Expected<config::Section> section = root.Child("segment");
+    if (!section) return std::unexpected(section.error());
+    const bool names_method = section->Has("method");
+    Expected<capture::SegmentOptions> parsed = capture::ParseSegmentOptions(*section);
+    if (!parsed) return std::unexpected(parsed.error());
+    options = *parsed;
+    if (!names_method) options.method = "auto";
+  }
+  if (!method.empty()) options.method = method;
+  if (Expected<std::unique_ptr<capture::Segmenter>> ok = capture::CreateSegmenter(options); !ok) {
+    return std::unexpected(Error{
+        ErrorCode::kBadInput, method.empty()
+                                  ? ok.error().message
+                                  : fmt::format("--segment {}: {}", method, ok.error().message)});
+  }
+  return options;
+}
+
+Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
+                                 const capture::SegmentOptions& options, std::ostream& out) {
+  Expected<capture::SetSegmentation> segmented = capture::SegmentImageSet(photos, options);
+  if (!segmented) return std::unexpected(segmented.error());
+  SetMasks result;
+  result.masks = std::move(segmented->masks);
+  result.problems = std::move(segmented->problems);
+  const capture::BackdropSurvey& survey = segmented->survey;
+  out << fmt::format("segmentation: {} ({})\n", segmented->method,
+                     options.method == "auto" ? segmented->reason : "as configured");
+  Logger("station")->info("reconstruct --images: segmentation {}: {}", segmented->method,
+                          segmented->reason);
+  result.report = {{"method", segmented->method},
+                   {"requested", options.method},
+                   {"reason", segmented->reason},
+                   {"backdrop",
+                    {{"kind", survey.kind},
+                     {"bgr", {survey.bgr[0], survey.bgr[1], survey.bgr[2]}},
+                     {"luma", survey.luma},
+                     {"chroma", survey.chroma},
+                     {"outline_stillness", survey.outline_stillness},
+                     {"outline_uniformity", survey.outline_uniformity}}}};
+  return result;
+}
+
+Expected<void> WriteMasks(const std::filesystem::path& out_dir,
+                          const std::vector<std::string>& names, const std::vector<cv::Mat>& photos,
+                          const std::vector<cv::Mat>& masks) {
+  const std::filesystem::path dir = out_dir / "masks";
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    return MakeError(ErrorCode::kIo,
+                     fmt::format("{}: cannot create the folder: {}", dir.string(), ec.message()));
+  }
+  std::vector<cv::Mat> tiles;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    const cv::Mat mask =
+        masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
+    const std::filesystem::path path =
+        dir / (std::filesystem::path(names[i]).stem().string() + ".png");
+    if (Expected<void> w = WritePng(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1}); !w) return w;
+    cv::Mat shown;
+    if (i < photos.size() && !photos[i].empty()) {
+      shown = photos[i];
+    } else {
+      cv::cvtColor(mask, shown, cv::COLOR_GRAY2BGR);
+    }
+    tiles.push_back(ContactSheetTile(shown, mask));
+  }
+  return WritePng(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
+}
+
+Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
+                                             const std::vector<View>& views,
+                                             std::vector<std::string>& problems,
+                                             const Eigen::Vector3d& box_min,
+                                             const Eigen::Vector3d& box_max, std::ostream& out) {
+  std::vector<double> agreement(masks.size(), 0.0);
+  std::vector<std::size_t> usable;
+  std::vector<cv::Mat> usable_masks;
+  std::vector<View> usable_views;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (!problems[i].empty()) continue;
+    usable.push_back(i);
+    usable_masks.push_back(masks[i]);
+    usable_views.push_back(views[i]);
+  }
+  if (usable.size() < 3) return agreement;
+  Expected<reconstruct::SilhouetteConsensus> consensus =
+      reconstruct::ConsensusOfSilhouettes(usable_masks, usable_views, box_min, box_max);
+  if (!consensus) return std::unexpected(consensus.error());
+  const double median = Median(consensus->agreement);
+  for (std::size_t k = 0; k < usable.size(); ++k) {
+    const std::size_t i = usable[k];
+    agreement[i] = consensus->agreement[k];
+    if (agreement[i] < kMinConsensus && agreement[i] < median - kConsensusMargin) {
+      problems[i] = fmt::format(
+          "its mask disagrees with the hull of the other views (IoU "
+          "{:.3f}, median {:.3f})",
+          agreement[i], median);
+      continue;
+    }
+    masks[i] = consensus->masks[k];
+  }
+  out << fmt::format("silhouette consensus: median agreement {:.3f} over {} views\n", median,
+                     usable.size());
+  return agreement;
+}
+
+nlohmann::json JudgeViews(const std::vector<std::string>& names, const std::vector<cv::Mat>& masks,
+                          const std::vector<double>& iou, const std::vector<std::string>& problems,
+                          double min_iou, std::ostream& out) {
+  std::vector<double> used;
+  for (std::size_t i = 0; i < iou.size(); ++i) {
+    if (problems[i].empty()) used.push_back(iou[i]);
+  }
+  const double median = Median(used);
+  nlohmann::json views = nlohmann::json::array();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    nlohmann::json view = {
+        {"image", names[i]}, {"mask_area_px", cv::countNonZero(masks[i])}, {"hull_iou", iou[i]}};
+    const bool disagrees = problems[i].empty() && (iou[i] < min_iou || iou[i] < median - 0.05);
+    view["disagrees"] = disagrees || !problems[i].empty();
+    if (!problems[i].empty()) {
+      view["left_out"] = problems[i];
+      out << fmt::format("warning: {}: left out of the carving: {}\n", names[i], problems[i]);
+    } else if (disagrees) {
+      out << fmt::format(
+          "warning: {}: its mask disagrees with the model the other views carve "
+          "(IoU {:.3f}, median {:.3f}); check masks/{}.png\n",
+          names[i], iou[i], median, std::filesystem::path(names[i]).stem().string());
+    }
+    views.push_back(std::move(view));
+  }
+  return views;
+}
+
+}  // namespace revolve::station
