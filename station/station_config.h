@@ -144,6 +144,12 @@ Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::p
 // bad_input naming file:line:column when a recipe's value does not fit its key.
 Expected<StationConfig> ApplyRecipe(const StationConfig& base, std::string_view name);
 
+// Everything a scan checks of its configuration short of opening devices, shared by `revolve
+// scan`, the daemon's start and `revolve check-config`: the segmenter's options, the configured
+// turntable and camera backends' option sets, and the calibration file (loaded, and it must hold
+// the turntable's axis). Errors name the file (and the key, where the options have one).
+Expected<void> CheckWithoutDevices(const StationConfig& config);
+
 // The names of the recipes: "default" first, then the configured ones.
 std::vector<std::string> RecipeNames(const StationConfig& config);
 

@@ -325,6 +325,11 @@ int RunCheckConfigCommand(const std::filesystem::path& file, std::ostream& out, 
       fmt::print(err, "revolve check-config: {}\n", applied.error().message);
       return kExitConfig;
     }
+    if (auto checked = CheckWithoutDevices(*applied); !checked) {
+      fmt::print(err, "revolve check-config: {}{}\n", checked.error().message,
+                 name == "default" ? "" : fmt::format(" (recipe \"{}\")", name));
+      return kExitConfig;
+    }
     recipes += fmt::format("#   {:<12} {} stops x {} deg, settle {} ms, {} {} at {}, formats {}\n",
                            name, applied->scan.stops, applied->scan.step_deg,
                            applied->scan.settle_ms, applied->segment.method,
@@ -334,7 +339,9 @@ int RunCheckConfigCommand(const std::filesystem::path& file, std::ostream& out, 
   std::ostringstream toml_text;
   toml_text << toml::toml_formatter(EffectiveTable(*config, document->root), kTomlFlags);
   fmt::print(out,
-             "# {}: valid.\n"
+             "# {}: valid: every check a scan makes short of opening the devices passed\n"
+             "# (every key, range and recipe; the segmenter, the backends' options and the\n"
+             "# calibration file). The turntable and camera themselves are not opened.\n"
              "# The effective configuration: every key of [scan], [station], [daemon] and "
              "[operator]\n"
              "# with its value (defaults filled in); the other sections as given (their "

@@ -83,6 +83,10 @@ int RunScanCommand(const ScanCommandOptions& options, std::stop_token stop, std:
     fmt::print(err, "revolve scan: {}\n", config.error().message);
     return kExitConfig;
   }
+  if (auto checked = CheckWithoutDevices(*config); !checked) {
+    fmt::print(err, "revolve scan: {}\n", checked.error().message);
+    return kExitConfig;
+  }
   auto devices = OpenDevices(*config);
   if (!devices) {
     fmt::print(err, "revolve scan: {}\n", devices.error().message);
