@@ -345,6 +345,12 @@ class Daemon::Impl {
       job->config = std::move(*cfg);
       auto manifest = ReadManifest(job->dir);
       if (!manifest) return std::unexpected(manifest.error());
+      if (manifest->value("state", std::string()) == "complete") {
+        return MakeError(ErrorCode::kBadInput,
+                         fmt::format("cannot resume {}: the scan is complete, nothing to resume "
+                                     "(start a new scan with `revolve start`)",
+                                     *resume));
+      }
       job->config.recipe = manifest->value("recipe", std::string("default"));
       auto folder = ScanFolder::Open(job->dir);
       if (!folder) return std::unexpected(folder.error());
