@@ -174,4 +174,35 @@ Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {
   return buffer.str();
 }
 
+Expected<void> CreateOutputFolder(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    // Name the deepest folder that exists: where the system refused.
+    std::filesystem::path parent = dir;
+    while (!parent.empty() && !std::filesystem::exists(parent, ec)) {
+      if (parent == parent.parent_path()) break;
+      parent = parent.parent_path();
+    }
+    int reason = EIO;
+    if (::access(parent.empty() ? "." : parent.c_str(), W_OK) != 0) reason = errno;
+    return MakeError(
+        ErrorCode::kIo,
+        fmt::format("{}: cannot create the output folder: {} (in {}; choose an "
+                    "--out on a writable disk)",
+                    dir.string(), std::strerror(reason), parent.empty() ? "." : parent.string()));
+  }
+  if (!std::filesystem::is_directory(dir, ec)) {
+    return MakeError(
+        ErrorCode::kIo,
+        fmt::format("{}: exists and is not a folder (choose another --out)", dir.string()));
+  }
+  if (::access(dir.c_str(), W_OK) != 0) {
+    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot write in the output folder: {} "
+                                                 "(choose an --out on a writable disk)",
+                                                 dir.string(), std::strerror(errno)));
+  }
+  return {};
+}
+
 }  // namespace revolve
