@@ -178,19 +178,17 @@ Expected<void> CreateOutputFolder(const std::filesystem::path& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) {
+    const std::string reason = ec.message();
     // Name the deepest folder that exists: where the system refused.
-    std::filesystem::path parent = dir;
-    while (!parent.empty() && !std::filesystem::exists(parent, ec)) {
-      if (parent == parent.parent_path()) break;
+    std::filesystem::path parent = dir.parent_path();
+    while (!parent.empty() && !std::filesystem::exists(parent, ec) &&
+           parent != parent.parent_path()) {
       parent = parent.parent_path();
     }
-    int reason = EIO;
-    if (::access(parent.empty() ? "." : parent.c_str(), W_OK) != 0) reason = errno;
-    return MakeError(
-        ErrorCode::kIo,
-        fmt::format("{}: cannot create the output folder: {} (in {}; choose an "
-                    "--out on a writable disk)",
-                    dir.string(), std::strerror(reason), parent.empty() ? "." : parent.string()));
+    return MakeError(ErrorCode::kIo,
+                     fmt::format("{}: cannot create the output folder: {} (in {}; choose an "
+                                 "--out on a writable disk)",
+                                 dir.string(), reason, parent.empty() ? "." : parent.string()));
   }
   if (!std::filesystem::is_directory(dir, ec)) {
     return MakeError(

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -105,7 +106,14 @@ class Checker {
     }                                                      \
   } while (false)
 
+// The angle between two directions, in [0, 180].
+double AngleBetweenDeg(double a_deg, double b_deg) {
+  const double d = std::fmod(std::abs(a_deg - b_deg), 360.0);
+  return std::min(d, 360.0 - d);
+}
+
 Expected<void> CheckStop(const Checker& c, const Json& stop, std::size_t i, std::int64_t planned,
+                         std::optional<double> step_deg,
                          std::vector<std::int64_t>& first_entry_of_index) {
   const std::string at = fmt::format("stops[{}]", i);
   if (!stop.is_object()) return std::unexpected(c.WrongType(at, "an object", stop));
@@ -123,10 +131,33 @@ Expected<void> CheckStop(const Checker& c, const Json& stop, std::size_t i, std:
                           *index, first)));
   }
   first = static_cast<std::int64_t>(i);
-  for (const char* key : {"commanded_deg", "readback_deg"}) {
-    if (auto it = stop.find(key); it != stop.end()) {
-      REVOLVE_CHECK(c.Number(*it, field(key), -1e6, 1e6));
+  std::optional<double> commanded_deg;
+  std::optional<double> readback_deg;
+  if (auto it = stop.find("commanded_deg"); it != stop.end()) {
+    auto value = c.Number(*it, field("commanded_deg"), -1e6, 1e6);
+    if (!value) return std::unexpected(value.error());
+    commanded_deg = *value;
+  }
+  if (auto it = stop.find("readback_deg"); it != stop.end()) {
+    auto value = c.Number(*it, field("readback_deg"), -1e6, 1e6);
+    if (!value) return std::unexpected(value.error());
+    readback_deg = *value;
+  }
+  // The angles agree with the stop's place in the plan and with each other: the read-back angle
+  // is where the table stopped, within any drive's tolerance.
+  if (commanded_deg && step_deg) {
+    const double planned_deg = static_cast<double>(*index) * *step_deg;
+    if (AngleBetweenDeg(*commanded_deg, planned_deg) > 1e-6) {
+      return std::unexpected(c.Bad(field("commanded_deg"),
+                                   fmt::format("{} deg, but stop {} of {} deg steps is at {} deg",
+                                               *commanded_deg, *index, *step_deg, planned_deg)));
     }
+  }
+  if (commanded_deg && readback_deg &&
+      AngleBetweenDeg(*commanded_deg, *readback_deg) > kMaxReadbackErrorDeg) {
+    return std::unexpected(c.Bad(field("readback_deg"),
+                                 fmt::format("{} deg is more than {} deg from commanded_deg {}",
+                                             *readback_deg, kMaxReadbackErrorDeg, *commanded_deg)));
   }
   for (const char* key : {"frame", "mask"}) {
     if (auto it = stop.find(key); it != stop.end()) REVOLVE_CHECK(c.FolderFile(*it, field(key)));
@@ -163,10 +194,12 @@ Expected<void> CheckManifest(const nlohmann::json& manifest, std::string_view or
     if (!value) return std::unexpected(value.error());
     planned = *value;
   }
+  std::optional<double> step_deg;
   if (auto it = manifest.find("step_deg"); it != manifest.end()) {
     auto value = c.Number(*it, "step_deg", 0.0, 360.0);
     if (!value) return std::unexpected(value.error());
     if (*value <= 0.0) return std::unexpected(c.Bad("step_deg", "must be greater than 0"));
+    step_deg = *value;
   }
   if (auto it = manifest.find("stops_done"); it != manifest.end()) {
     REVOLVE_CHECK(c.Integer(*it, "stops_done", 0, kMaxManifestStops));
@@ -209,7 +242,7 @@ Expected<void> CheckManifest(const nlohmann::json& manifest, std::string_view or
   }
   std::vector<std::int64_t> first_entry_of_index(static_cast<std::size_t>(planned), -1);
   for (std::size_t i = 0; i < stops->size(); ++i) {
-    REVOLVE_CHECK(CheckStop(c, (*stops)[i], i, planned, first_entry_of_index));
+    REVOLVE_CHECK(CheckStop(c, (*stops)[i], i, planned, step_deg, first_entry_of_index));
   }
   return {};
 }

@@ -14,6 +14,10 @@ namespace revolve::station {
 // The most stops a manifest may list (a scan has at most 3600: [scan] stops).
 inline constexpr int kMaxManifestStops = 3600;
 
+// The most a stop's read-back angle may differ from its commanded one (any drive's tolerance is
+// smaller).
+inline constexpr double kMaxReadbackErrorDeg = 5.0;
+
 // The states a manifest's "state" may hold.
 inline constexpr std::string_view kManifestStates[] = {"running", "complete", "failed", "aborted"};
 
@@ -22,7 +26,8 @@ inline constexpr std::string_view kManifestStates[] = {"running", "complete", "f
 // - each stop: "index" an integer in [0, stops_planned) (or [0, kMaxManifestStops)), listed
 //   once; "commanded_deg" and "readback_deg" finite numbers, "frame" and "mask" strings naming a
 //   file inside the scan folder (relative, no ".."), "quality" an array of {"code", "message"}
-//   strings, when present;
+//   strings, when present; "commanded_deg" is index * step_deg, and "readback_deg" within
+//   kMaxReadbackErrorDeg of it;
 // - "stops_planned" an integer in [1, kMaxManifestStops], "step_deg" a finite number in
 //   (0, 360], "stops_done" a non-negative integer, "state" one of kManifestStates, "scan_id",
 //   "recipe", "started", "finished", "config" strings, "resumed" an array, "error" an object

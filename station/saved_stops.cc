@@ -21,17 +21,20 @@ Expected<std::vector<SavedStop>> ReadSavedStops(const std::filesystem::path& dir
   std::map<int, SavedStop> by_index;
   std::optional<cv::Size> mask_size;
   std::string first_mask;
-  for (const nlohmann::json& entry : manifest["stops"]) {
+  for (std::size_t position = 0; position < manifest["stops"].size(); ++position) {
+    const nlohmann::json& entry = manifest["stops"][position];
     SavedStop stop;
+    stop.manifest_position = static_cast<int>(position);
     stop.index = entry["index"].get<int>();
     stop.commanded_deg = entry.value("commanded_deg", 0.0);
     stop.readback_deg = entry.value("readback_deg", stop.commanded_deg);
     stop.frame_file = entry.value("frame", std::string());
     stop.mask_file = entry.value("mask", std::string());
     stop.entry = entry;
-    const std::string what = fmt::format("stop {}", stop.index);
+    const std::string what =
+        fmt::format("stop {} ({} stops[{}].mask)", stop.index, manifest_file, position);
     if (stop.mask_file.empty()) {
-      if (skipped) skipped->push_back(what + ": no mask listed in " + manifest_file);
+      if (skipped) skipped->push_back(what + ": no mask listed");
       continue;
     }
     ImageReadOptions read;
@@ -66,7 +69,10 @@ Expected<std::vector<SavedStop>> ReadSavedStops(const std::filesystem::path& dir
       frame_read.expected_size = stop.mask.size();
       Expected<cv::Mat> frame = ReadImageFile(dir / stop.frame_file, frame_read);
       if (!frame) {
-        if (skipped) skipped->push_back(what + ": " + frame.error().message);
+        if (skipped) {
+          skipped->push_back(fmt::format("stop {} ({} stops[{}].frame): {}", stop.index,
+                                         manifest_file, position, frame.error().message));
+        }
         continue;
       }
       stop.frame = std::move(*frame);

@@ -19,9 +19,10 @@ struct SavedStop {
   double readback_deg = 0.0;
   std::string frame_file;  // relative to the scan folder
   std::string mask_file;
-  cv::Mat frame;         // CV_8UC3; empty unless loaded
-  cv::Mat mask;          // CV_8UC1
-  nlohmann::json entry;  // the manifest's entry, as saved
+  int manifest_position = 0;  // its place in the manifest's "stops" (stops[i]), for messages
+  cv::Mat frame;              // CV_8UC3; empty unless loaded
+  cv::Mat mask;               // CV_8UC1
+  nlohmann::json entry;       // the manifest's entry, as saved
 };
 
 // The stops listed in `manifest` (a scan folder's manifest.json) whose mask (and, with

@@ -131,8 +131,11 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
       if (Expected<cv::Mat> loaded = ReadImageFile(dir / s.frame_file, read); loaded) {
         frame = std::move(*loaded);
       } else {
-        fmt::print(err, "revolve reconstruct: warning: {}; stop {} is carved but gives no colour\n",
-                   loaded.error().message, s.index);
+        fmt::print(err,
+                   "revolve reconstruct: warning: stop {} ({} stops[{}].frame): {}; the stop is "
+                   "carved but gives no colour\n",
+                   s.index, (dir / "manifest.json").string(), s.manifest_position,
+                   loaded.error().message);
       }
     }
     if (cv::countNonZero(s.mask) == 0) {
