@@ -149,7 +149,7 @@ Expected<void> CheckStop(const Checker& c, const Json& stop, std::size_t i, std:
     const double planned_deg = static_cast<double>(*index) * *step_deg;
     if (AngleBetweenDeg(*commanded_deg, planned_deg) > 1e-6) {
       return std::unexpected(c.Bad(field("commanded_deg"),
-                                   fmt::format("{} deg, but stop {} of {} deg steps is at {} deg",
+                                   fmt::format("{} deg, but stop {} with step_deg {} is at {} deg",
                                                *commanded_deg, *index, *step_deg, planned_deg)));
     }
   }
