@@ -94,6 +94,19 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     fmt::print(err, "revolve reconstruct: {}\n", geometry.error().message);
     return kExitConfig;
   }
+  // A camera whose own geometry carves must be the one the scan was made with: a scan.toml
+  // changed or cut short (still valid TOML, so other defaults) would carve with other views.
+  if (geometry->source() == GeometrySource::kCamera) {
+    const std::string recorded = manifest->value("camera", std::string());
+    if (!recorded.empty() && recorded != (*camera)->Describe()) {
+      fmt::print(err,
+                 "revolve reconstruct: {}: the camera it describes ({}) is not the one "
+                 "{} records for this scan ({}): scan.toml was changed or cut short; restore it\n",
+                 (dir / "scan.toml").string(), (*camera)->Describe(),
+                 (dir / "manifest.json").string(), recorded);
+      return kExitConfig;
+    }
+  }
   std::vector<std::string> skipped;
   auto stops = ReadSavedStops(dir, *manifest, false, &skipped);
   if (!stops) {

@@ -268,6 +268,18 @@ TEST_F(ScanFolderInputTest, SizesThatDisagreeAreErrors) {
   EXPECT_THAT(r.err, HasSubstr("800 x 576"));
 }
 
+// A scan.toml cut short (still valid TOML) falls back to other defaults: refused, not carved
+// with another camera.
+TEST_F(ScanFolderInputTest, AScanTomlCutShortIsRefused) {
+  const fs::path scan = CopyScan("cut_toml");
+  WriteText(scan / "scan.toml",
+            ReadAll(scan / "scan.toml") + "\n[camera.synthetic]\nhfov_deg = 35.0\n");
+  const RunResult r = Reconstruct(scan);
+  EXPECT_EQ(r.exit_code, kExitConfig) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("scan.toml: the camera it describes"));
+  EXPECT_THAT(r.err, HasSubstr("hfov 35 deg"));
+}
+
 // Damaged frames are named, not silently dropped from the texture.
 TEST_F(ScanFolderInputTest, ADamagedFrameIsNamed) {
   const fs::path scan = CopyScan("cut_frame");
