@@ -48,6 +48,8 @@ constexpr std::size_t kMaxClientOutBytes = 4u << 20;
 constexpr std::size_t kMaxListedScans = 1000;
 // The main loop wakes at least this often.
 constexpr auto kMaxPollWait = std::chrono::milliseconds(1000);
+// A silent client is never evicted for a newcomer before it has been idle this long.
+constexpr auto kMinIdleToEvict = std::chrono::milliseconds(500);
 
 Error Errno(ErrorCode code, std::string what, int err) {
   return Error{code, fmt::format("{}: {}", what, std::strerror(err))};
@@ -129,6 +131,8 @@ struct Client {
   std::string out;
   bool watching = false;
   bool closed = false;
+  // When it last sent a byte: a client that neither sends nor watches holds a control slot.
+  std::chrono::steady_clock::time_point last_active = std::chrono::steady_clock::now();
 };
 
 struct ScanJob {
@@ -630,6 +634,7 @@ class Daemon::Impl {
     for (int round = 0; round < 8 && !c.closed; ++round) {
       const ssize_t n = ::recv(c.fd.get(), buf, sizeof(buf), 0);
       if (n > 0) {
+        c.last_active = std::chrono::steady_clock::now();
         c.in.Append(std::string_view(buf, static_cast<std::size_t>(n)));
         for (auto item = c.in.Next(); item.has_value(); item = c.in.Next()) {
           if (item->kind == LineSplitter::Kind::kTooLong) {
@@ -679,6 +684,9 @@ class Daemon::Impl {
         return;
       }
       if (clients_.size() >= static_cast<std::size_t>(config_.daemon.max_clients)) {
+        EvictIdlestClient();
+      }
+      if (clients_.size() >= static_cast<std::size_t>(config_.daemon.max_clients)) {
         const std::string line = ErrorLine(
             nullptr, Error{ErrorCode::kBusy, fmt::format("too many clients (daemon.max_clients "
                                                          "= {})",
@@ -688,6 +696,52 @@ class Daemon::Impl {
       }
       clients_.emplace_back(std::move(fd),
                             static_cast<std::size_t>(config_.daemon.max_request_bytes));
+    }
+  }
+
+  // A client that sends nothing and watches nothing: idle since when, or nullopt.
+  static std::optional<std::chrono::steady_clock::time_point> IdleSince(const Client& c) {
+    if (c.watching || c.closed || !c.out.empty()) return std::nullopt;
+    return c.last_active;
+  }
+
+  // With every slot taken, a new client gets the slot of the one idle longest (for at least
+  // kMinIdleToEvict), so that silent clients cannot lock `revolve status` out.
+  void EvictIdlestClient() {
+    Client* idlest = nullptr;
+    for (Client& c : clients_) {
+      const auto since = IdleSince(c);
+      if (since && (idlest == nullptr || *since < idlest->last_active)) idlest = &c;
+    }
+    if (idlest == nullptr ||
+        std::chrono::steady_clock::now() - idlest->last_active < kMinIdleToEvict) {
+      return;
+    }
+    CloseIdle(*idlest, "its slot was needed (daemon.max_clients are all taken)");
+    clients_.remove_if([](const Client& c) { return c.closed; });
+  }
+
+  void CloseIdle(Client& c, std::string_view why) {
+    const std::string line = ErrorLine(
+        nullptr,
+        Error{ErrorCode::kTimeout, fmt::format("closed: idle (nothing sent for {} s "
+                                               "and not watching); {}",
+                                               std::chrono::duration_cast<std::chrono::seconds>(
+                                                   std::chrono::steady_clock::now() - c.last_active)
+                                                   .count(),
+                                               why)});
+    (void)!::send(c.fd.get(), line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+    c.closed = true;
+  }
+
+  // Closes the clients idle for longer than daemon.idle_timeout_s.
+  void CloseIdleClients() {
+    const auto limit = std::chrono::duration<double>(config_.daemon.idle_timeout_s);
+    const auto now = std::chrono::steady_clock::now();
+    for (Client& c : clients_) {
+      if (const auto since = IdleSince(c); since && now - *since > limit) {
+        CloseIdle(c, "daemon.idle_timeout_s");
+      }
     }
   }
 
@@ -755,6 +809,7 @@ class Daemon::Impl {
       if (!c.closed && (revents & (POLLIN | POLLHUP))) ReadClient(c);
       if (!c.closed) WriteClient(c);
     }
+    CloseIdleClients();
     clients_.remove_if([](const Client& c) { return c.closed; });
 
     if (panel_) panel_->Show(Pattern(), LampOn(last_event_.state), MonoNow());

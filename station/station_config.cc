@@ -119,6 +119,7 @@ Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
   r.String("socket_group", o.socket_group);
   r.Integer("max_clients", o.max_clients, 1, 1024);
   r.Integer("max_request_bytes", o.max_request_bytes, 64, 1 << 20);
+  r.Number("idle_timeout_s", o.idle_timeout_s, 1.0, 86400.0);
   if (auto done = r.Finish(); !done) return std::unexpected(done.error());
   return o;
 }

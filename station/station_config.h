@@ -73,6 +73,9 @@ struct DaemonOptions {
   std::string socket_group;                          // group name; "" = the daemon's own group
   int max_clients = 32;                              // [1, 1024]
   int max_request_bytes = 4096;                      // [64, 1048576]
+  // A client that sends nothing and watches nothing for this long is closed; with every slot
+  // taken, the one idle longest gives its slot to a newcomer. [1, 86400]
+  double idle_timeout_s = 30.0;
 };
 
 // One GPIO line of the operator panel: an offset or a line name on [operator] chip.

@@ -285,6 +285,7 @@ toml::table EffectiveTable(const StationConfig& c, const toml::table& given) {
   daemon.insert_or_assign("socket_group", c.daemon.socket_group);
   daemon.insert_or_assign("max_clients", c.daemon.max_clients);
   daemon.insert_or_assign("max_request_bytes", c.daemon.max_request_bytes);
+  daemon.insert_or_assign("idle_timeout_s", c.daemon.idle_timeout_s);
   toml::table& panel = table("operator");
   panel.insert_or_assign("chip", c.panel.chip);
   PutLine(panel, "start_button", c.panel.start_button);
