@@ -115,6 +115,25 @@ TEST_F(BadInputTest, CheckConfigSaysWhatItChecked) {
   EXPECT_THAT(r.out, HasSubstr("every check a scan makes short of opening the devices"));
 }
 
+// A missing camera exits 78 and creates nothing, whatever the backend (as a missing drive).
+TEST_F(BadInputTest, AMissingCameraExits78AndCreatesNothing) {
+  for (const std::string backend : {"v4l2", "libcamera", "replay"}) {
+    const fs::path config = dir_ / (backend + ".toml");
+    std::string text = "[camera]\nbackend = \"" + backend + "\"\n";
+    if (backend == "v4l2") text += "[camera.v4l2]\ndevice = \"/dev/video_revolve_missing\"\n";
+    if (backend == "libcamera") text += "[camera.libcamera]\ncamera = \"revolve-missing\"\n";
+    if (backend == "replay") text += "[camera.replay]\ndir = \"no_such_folder\"\n";
+    WriteText(config, text);
+    const fs::path out = dir_ / ("out_" + backend);
+    const RunResult r =
+        Revolve("scan --config " + config.string() + " --out " + out.string(), dir_);
+    if (r.err.find("not in this build") != std::string::npos) continue;
+    EXPECT_EQ(r.exit_code, kExitConfig) << backend << ": " << r.err;
+    EXPECT_FALSE(fs::exists(out)) << backend;
+    EXPECT_THAT(r.err, Not(HasSubstr("internal error"))) << backend;
+  }
+}
+
 // ---- A scan folder read back ----------------------------------------------------------------
 
 constexpr char kQuickScan[] = R"(
