@@ -699,47 +699,32 @@ class Daemon::Impl {
     }
   }
 
-  // A client that sends nothing and watches nothing: idle since when, or nullopt.
-  static std::optional<std::chrono::steady_clock::time_point> IdleSince(const Client& c) {
-    if (c.watching || c.closed || !c.out.empty()) return std::nullopt;
-    return c.last_active;
-  }
-
-  // With every slot taken, a new client gets the slot of the one idle longest (for at least
-  // kMinIdleToEvict), so that silent clients cannot lock `revolve status` out.
-  void EvictIdlestClient() {
-    Client* idlest = nullptr;
-    for (Client& c : clients_) {
-      const auto since = IdleSince(c);
-      if (since && (idlest == nullptr || *since < idlest->last_active)) idlest = &c;
-    }
-    if (idlest == nullptr ||
-        std::chrono::steady_clock::now() - idlest->last_active < kMinIdleToEvict) {
-      return;
-    }
-    CloseIdle(*idlest, "its slot was needed (daemon.max_clients are all taken)");
-    clients_.remove_if([](const Client& c) { return c.closed; });
-  }
-
+  // A client that neither sends nor watches holds a slot for nothing: it is closed after
+  // daemon.idle_timeout_s, and sooner (idle kMinIdleToEvict) when a newcomer needs its slot.
+  static bool Idle(const Client& c) { return !c.watching && !c.closed && c.out.empty(); }
   void CloseIdle(Client& c, std::string_view why) {
-    const std::string line = ErrorLine(
-        nullptr,
-        Error{ErrorCode::kTimeout, fmt::format("closed: idle (nothing sent for {} s "
-                                               "and not watching); {}",
-                                               std::chrono::duration_cast<std::chrono::seconds>(
-                                                   std::chrono::steady_clock::now() - c.last_active)
-                                                   .count(),
-                                               why)});
+    const std::string line =
+        ErrorLine(nullptr, Error{ErrorCode::kTimeout, fmt::format("closed: idle (nothing sent, not "
+                                                                  "watching): {}",
+                                                                  why)});
     (void)!::send(c.fd.get(), line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
     c.closed = true;
   }
-
-  // Closes the clients idle for longer than daemon.idle_timeout_s.
+  void EvictIdlestClient() {
+    const auto idlest = std::ranges::min_element(clients_, {}, [](const Client& c) {
+      return Idle(c) ? c.last_active : std::chrono::steady_clock::time_point::max();
+    });
+    if (idlest == clients_.end() || !Idle(*idlest) ||
+        std::chrono::steady_clock::now() - idlest->last_active < kMinIdleToEvict) {
+      return;
+    }
+    CloseIdle(*idlest, "its slot was needed (every daemon.max_clients slot is taken)");
+    clients_.erase(idlest);
+  }
   void CloseIdleClients() {
     const auto limit = std::chrono::duration<double>(config_.daemon.idle_timeout_s);
-    const auto now = std::chrono::steady_clock::now();
     for (Client& c : clients_) {
-      if (const auto since = IdleSince(c); since && now - *since > limit) {
+      if (Idle(c) && std::chrono::steady_clock::now() - c.last_active > limit) {
         CloseIdle(c, "daemon.idle_timeout_s");
       }
     }
