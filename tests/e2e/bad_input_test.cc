@@ -283,8 +283,8 @@ TEST_F(ScanFolderInputTest, SizesThatDisagreeAreErrors) {
             ReadAll(scan / "scan.toml") + "\n[camera.synthetic]\nwidth_px = 800\n");
   r = Reconstruct(scan);
   EXPECT_EQ(r.exit_code, kExitConfig) << r.err;
-  EXPECT_THAT(r.err, HasSubstr("768 x 576"));
-  EXPECT_THAT(r.err, HasSubstr("800 x 576"));
+  EXPECT_THAT(r.err, HasSubstr("768x576"));
+  EXPECT_THAT(r.err, HasSubstr("800x576"));
 }
 
 // A scan.toml cut short (still valid TOML) falls back to other defaults: refused, not carved
