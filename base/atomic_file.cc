@@ -174,4 +174,33 @@ Expected<std::string> ReadWholeFile(const std::filesystem::path& path) {
   return buffer.str();
 }
 
+Expected<void> CreateOutputFolder(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    const std::string reason = ec.message();
+    // Name the deepest folder that exists: where the system refused.
+    std::filesystem::path parent = dir.parent_path();
+    while (!parent.empty() && !std::filesystem::exists(parent, ec) &&
+           parent != parent.parent_path()) {
+      parent = parent.parent_path();
+    }
+    return MakeError(ErrorCode::kIo,
+                     fmt::format("{}: cannot create the output folder: {} (in {}; choose an "
+                                 "--out on a writable disk)",
+                                 dir.string(), reason, parent.empty() ? "." : parent.string()));
+  }
+  if (!std::filesystem::is_directory(dir, ec)) {
+    return MakeError(
+        ErrorCode::kIo,
+        fmt::format("{}: exists and is not a folder (choose another --out)", dir.string()));
+  }
+  if (::access(dir.c_str(), W_OK) != 0) {
+    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot write in the output folder: {} "
+                                                 "(choose an --out on a writable disk)",
+                                                 dir.string(), std::strerror(errno)));
+  }
+  return {};
+}
+
 }  // namespace revolve

@@ -115,4 +115,9 @@ Expected<void> WriteFileAtomically(const std::filesystem::path& path,
 // The whole file. Errors: kNotFound or kIo, naming the path.
 Expected<std::string> ReadWholeFile(const std::filesystem::path& path);
 
+// Creates the folder `dir` (and its parents) for output and checks it can be written. Errors:
+// io naming `dir` (or the parent that could not be made) and the system's reason, e.g. "Read-only
+// file system" or "Permission denied", with what to do.
+Expected<void> CreateOutputFolder(const std::filesystem::path& dir);
+
 }  // namespace revolve

@@ -50,7 +50,16 @@ Expected<std::vector<std::filesystem::path>> ListImageFiles(const std::filesyste
   }
   std::vector<std::filesystem::path> files;
   for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && IsImageFile(entry.path())) files.push_back(entry.path());
+    if (!IsImageFile(entry.path())) continue;
+    std::error_code entry_ec;
+    if (entry.is_symlink(entry_ec) && !entry.exists(entry_ec)) {
+      return MakeError(ErrorCode::kNotFound,
+                       fmt::format("{}: a dangling symbolic link (its target {} does not exist); "
+                                   "fix or remove it",
+                                   entry.path().string(),
+                                   std::filesystem::read_symlink(entry.path(), entry_ec).string()));
+    }
+    if (entry.is_regular_file(entry_ec)) files.push_back(entry.path());
   }
   if (ec) {
     return MakeError(ErrorCode::kIo,

@@ -19,7 +19,8 @@ bool IsImageFile(const std::filesystem::path& path);
 bool NaturalLess(std::string_view a, std::string_view b);
 
 // The image files directly in `dir`, in natural order of their names; possibly none.
-// Errors: not_found naming `dir` when it is not a folder; io when it cannot be listed.
+// Errors: not_found naming `dir` when it is not a folder, or naming an image file name that is
+// a dangling symbolic link; io when it cannot be listed.
 Expected<std::vector<std::filesystem::path>> ListImageFiles(const std::filesystem::path& dir);
 
 }  // namespace revolve

@@ -1,6 +1,7 @@
 #include "config/config.h"
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <utility>
@@ -20,6 +21,29 @@ std::string JoinAllowed(std::initializer_list<std::string_view> allowed) {
     out += '"';
   }
   return out;
+}
+
+// The value of a TOML number node as a double, or why it cannot be one: an integer beyond 2^53
+// is not representable exactly (toml++ would give no value, and the caller's fallback would
+// silently take its place); nan and inf are never valid option values.
+std::expected<double, std::string> FiniteDouble(const toml::node& node) {
+  if (const toml::value<std::int64_t>* integer = node.as_integer()) {
+    const std::int64_t v = integer->get();
+    if (v > kMaxExactInteger || v < -kMaxExactInteger) {
+      return std::unexpected(
+          fmt::format("{} is too large to be represented exactly as a number (at most 2^53 = {})",
+                      v, kMaxExactInteger));
+    }
+    return static_cast<double>(v);
+  }
+  if (const toml::value<double>* floating = node.as_floating_point()) {
+    const double v = floating->get();
+    if (!std::isfinite(v)) {
+      return std::unexpected(fmt::format("{} is not a finite number", v));
+    }
+    return v;
+  }
+  return std::unexpected(std::string("expected a number"));
 }
 
 }  // namespace
@@ -117,9 +141,11 @@ Expected<double> Section::Number(std::string_view key, double fallback, double m
   Note(key, "number", FormatReferenceNumber(fallback), min, max);
   const toml::node* node = Find(key);
   if (node == nullptr) return fallback;
-  if (!node->is_number()) return std::unexpected(BadValue(key, "expected a number"));
-  const double value = node->value<double>().value_or(fallback);
-  if (value < min || value > max) {
+  const std::expected<double, std::string> number = FiniteDouble(*node);
+  if (!number) return std::unexpected(BadValue(key, number.error()));
+  const double value = *number;
+  // Written so that a nan bound or value can never pass.
+  if (!(value >= min && value <= max)) {
     return std::unexpected(
         BadValue(key, fmt::format("{} is out of range [{}, {}]", value, min, max)));
   }
@@ -190,7 +216,12 @@ Expected<std::vector<double>> Section::Numbers(std::string_view key, std::vector
     if (!element.is_number()) {
       return std::unexpected(BadValue(key, "expected an array of numbers"));
     }
-    values.push_back(element.value<double>().value_or(0.0));
+    const std::expected<double, std::string> number = FiniteDouble(element);
+    if (!number) {
+      return std::unexpected(
+          BadValue(key, fmt::format("element {}: {}", values.size() + 1, number.error())));
+    }
+    values.push_back(*number);
   }
   if (count != 0 && values.size() != count) {
     return std::unexpected(

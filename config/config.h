@@ -42,6 +42,10 @@ Expected<Document> Parse(std::string text, std::string origin);
 std::string_view EmbeddedDefault();
 inline constexpr std::string_view kEmbeddedOrigin = "<embedded default config>";
 
+// The largest integer a double holds exactly (2^53): an integer beyond it on a number key is an
+// error, never rounded or replaced.
+inline constexpr std::int64_t kMaxExactInteger = std::int64_t{1} << 53;
+
 // One table of a document. Remembers which keys were read so that unknown keys can be
 // reported. A missing table behaves as an empty one. Cheap to copy; copies share the record of
 // read keys. The Document must outlive it.
@@ -58,7 +62,9 @@ class Section {
   bool Has(std::string_view key) const;
 
   // Typed getters: the value of `key`, or `fallback` when it is absent. A value of the wrong
-  // type or outside [min, max] is a bad_input error naming file:line:column and the key.
+  // type or outside [min, max] is a bad_input error naming file:line:column and the key. Every
+  // number read (Number, Numbers) is finite (nan and inf are errors) and representable (an
+  // integer beyond 2^53 on a number key is an error).
   Expected<double> Number(std::string_view key, double fallback, double min, double max) const;
   Expected<std::int64_t> Integer(std::string_view key, std::int64_t fallback, std::int64_t min,
                                  std::int64_t max) const;

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_files.h"
+#include "base/image_read.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -97,7 +98,19 @@ Expected<NamePattern> NamePattern::Parse(std::string_view pattern) {
     if (pattern[pos] == '{') {
       const std::size_t close = pattern.find('}', pos);
       if (close == std::string_view::npos) return bad("'{' without '}'");
-      const std::string_view name = pattern.substr(pos + 1, close - pos - 1);
+      std::string_view name = pattern.substr(pos + 1, close - pos - 1);
+      // A format spec, as in Python and fmt: {index:03} zero-pads to 3 digits.
+      if (const std::size_t colon = name.find(':'); colon != std::string_view::npos) {
+        const std::string_view spec = name.substr(colon + 1);
+        const auto width = LeadingNumber(spec);
+        if (!width || width->second != static_cast<int>(spec.size()) || width->first < 1 ||
+            width->first > 9) {
+          return bad(fmt::format("{{{}}}: expected a zero-padded width like {{{}:03}}", name,
+                                 name.substr(0, colon)));
+        }
+        result.width_ = static_cast<int>(width->first);
+        name = name.substr(0, colon);
+      }
       if (name != "angle" && name != "index") {
         return bad(
             fmt::format("unknown placeholder {{{}}} (expected {{angle}} or {{index}})", name));
@@ -122,11 +135,16 @@ std::optional<NamePattern::Number> NamePattern::Match(std::string_view file_name
       file_name.substr(prefix_.size(), file_name.size() - prefix_.size() - suffix_.size());
   const auto number = LeadingNumber(middle);
   if (!number || number->second != static_cast<int>(middle.size())) return std::nullopt;
+  // With a width, the number is written with exactly that many digits (or more, unpadded).
+  if (width_ > 0 && number->second != width_ &&
+      (number->second < width_ || middle.front() == '0')) {
+    return std::nullopt;
+  }
   return Number{number->first, number->second};
 }
 
 std::string NamePattern::Format(long number, int digits) const {
-  return prefix_ + fmt::format("{:0{}d}", number, std::max(digits, 1)) + suffix_;
+  return prefix_ + fmt::format("{:0{}d}", number, std::max({digits, width_, 1})) + suffix_;
 }
 
 std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image) {
@@ -195,24 +213,15 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
   return mask;
 }
 
-Expected<cv::Mat> ReadImage8(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    return MakeError(ErrorCode::kNotFound, fmt::format("{}: no such image file", path.string()));
-  }
-  cv::Mat image;
-  try {
-    image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("{}: cannot be decoded: {}", path.string(), e.what()));
-  }
-  if (image.empty()) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("{}: cannot be read as an image (damaged or an unsupported "
-                                 "format)",
-                                 path.string()));
-  }
+Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max_pixels,
+                             std::optional<cv::Size> expected_size) {
+  ImageReadOptions read;
+  read.imread_flags = cv::IMREAD_UNCHANGED;
+  read.max_pixels = max_pixels;
+  read.expected_size = expected_size;
+  Expected<cv::Mat> decoded = ReadImageFile(path, read);
+  if (!decoded) return std::unexpected(decoded.error());
+  cv::Mat image = std::move(*decoded);
   if (image.depth() != CV_8U) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{}: {}-bit samples; 8-bit images expected", path.string(),
@@ -313,7 +322,10 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
 
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     SetImage& image = set.images[i];
-    Expected<cv::Mat> pixels = ReadImage8(image.path);
+    // Every image after the first must have its size: refused from the header, before decoding.
+    Expected<cv::Mat> pixels =
+        ReadImage8(image.path, options.max_image_pixels,
+                   i == 0 ? std::nullopt : std::optional(cv::Size(set.width_px, set.height_px)));
     if (!pixels) return std::unexpected(pixels.error());
     if (i == 0) {
       set.width_px = pixels->cols;

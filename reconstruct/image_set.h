@@ -2,7 +2,8 @@
 // in which order, at which angle, and the silhouette of each.
 //
 // Naming (`pattern`): `{angle}` stands for the stop's angle in whole degrees and `{index}` for its
-// number (digits, zero-padding allowed); every other character is literal. `bw_shoe{angle}.tif`
+// number (digits, zero-padding allowed; `{index:03}` asks for exactly 3 digits, zero-padded);
+// every other character is literal. `bw_shoe{angle}.tif`
 // matches the thesis's bw_shoe0.tif ... bw_shoe350.tif, `dinoSR{index}.png` the Middlebury
 // files. Without a pattern every image file of the folder (.png .tif .tiff .jpg .jpeg .bmp .pgm
 // .ppm, any case) is taken, in file-name order, stop k at k * step_deg.
@@ -26,6 +27,7 @@
 #include <opencv2/core.hpp>
 
 #include "base/error.h"
+#include "base/image_read.h"
 
 namespace revolve::reconstruct {
 
@@ -49,6 +51,8 @@ struct ImageSetOptions {
   // false: photos are loaded with an empty mask, for the caller to segment
   // (capture::SegmentImageSet); silhouettes keep theirs.
   bool segment_photos = true;
+  // Larger images are refused from their headers, before decoding (base/image_read.h).
+  std::int64_t max_image_pixels = kDefaultMaxImagePixels;
 };
 
 enum class ImageKind { kSilhouette, kPhoto };
@@ -92,6 +96,7 @@ class NamePattern {
   std::string prefix_;
   std::string suffix_;
   bool is_angle_ = false;
+  int width_ = 0;  // {index:03}: 3; 0 without a width
 };
 
 // Silhouette of a binary image (see the file comment), or nullopt when the image is not binary.
@@ -108,8 +113,13 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options);
 // pattern or step).
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options);
 
-// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha). Errors:
-// not_found, or bad_input naming the file (not an image OpenCV can decode, not 8-bit).
-Expected<cv::Mat> ReadImage8(const std::filesystem::path& path);
+// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha), its
+// header checked first (base/image_read.h: over `max_pixels`, of another size than
+// `expected_size`, cut short or damaged: refused before decoding). Errors: not_found (also a
+// dangling symbolic link), or bad_input naming the file (not an image OpenCV can decode, not
+// 8-bit, the checks above).
+Expected<cv::Mat> ReadImage8(const std::filesystem::path& path,
+                             std::int64_t max_pixels = kDefaultMaxImagePixels,
+                             std::optional<cv::Size> expected_size = std::nullopt);
 
 }  // namespace revolve::reconstruct

@@ -54,6 +54,8 @@ constexpr std::size_t kMaxListedScans = 1000;
 constexpr auto kMaxPollWait = std::chrono::milliseconds(1000);
 // A web request waits this long for the main loop.
 constexpr auto kWebCallTimeout = std::chrono::milliseconds(5000);
+// A silent client is never evicted for a newcomer before it has been idle this long.
+constexpr auto kMinIdleToEvict = std::chrono::milliseconds(500);
 
 Error Errno(ErrorCode code, std::string what, int err) {
   return Error{code, fmt::format("{}: {}", what, std::strerror(err))};
@@ -135,6 +137,8 @@ struct Client {
   std::string out;
   bool watching = false;
   bool closed = false;
+  // When it last sent a byte: a client that neither sends nor watches holds a control slot.
+  std::chrono::steady_clock::time_point last_active = std::chrono::steady_clock::now();
 };
 
 struct ScanJob {
@@ -408,6 +412,12 @@ class Daemon::Impl {
       job->config = std::move(*cfg);
       auto manifest = ReadManifest(job->dir);
       if (!manifest) return std::unexpected(manifest.error());
+      if (manifest->value("state", std::string()) == "complete") {
+        return MakeError(ErrorCode::kBadInput,
+                         fmt::format("cannot resume {}: the scan is complete, nothing to resume "
+                                     "(start a new scan with `revolve start`)",
+                                     *resume));
+      }
       job->config.recipe = manifest->value("recipe", std::string("default"));
       auto folder = ScanFolder::Open(job->dir);
       if (!folder) return std::unexpected(folder.error());
@@ -656,6 +666,7 @@ class Daemon::Impl {
     for (int round = 0; round < 8 && !c.closed; ++round) {
       const ssize_t n = ::recv(c.fd.get(), buf, sizeof(buf), 0);
       if (n > 0) {
+        c.last_active = std::chrono::steady_clock::now();
         c.in.Append(std::string_view(buf, static_cast<std::size_t>(n)));
         for (auto item = c.in.Next(); item.has_value(); item = c.in.Next()) {
           if (item->kind == LineSplitter::Kind::kTooLong) {
@@ -705,6 +716,9 @@ class Daemon::Impl {
         return;
       }
       if (clients_.size() >= static_cast<std::size_t>(config_.daemon.max_clients)) {
+        EvictIdlestClient();
+      }
+      if (clients_.size() >= static_cast<std::size_t>(config_.daemon.max_clients)) {
         const std::string line = ErrorLine(
             nullptr, Error{ErrorCode::kBusy, fmt::format("too many clients (daemon.max_clients "
                                                          "= {})",
@@ -714,6 +728,37 @@ class Daemon::Impl {
       }
       clients_.emplace_back(std::move(fd),
                             static_cast<std::size_t>(config_.daemon.max_request_bytes));
+    }
+  }
+
+  // A client that neither sends nor watches holds a slot for nothing: it is closed after
+  // daemon.idle_timeout_s, and sooner (idle kMinIdleToEvict) when a newcomer needs its slot.
+  static bool Idle(const Client& c) { return !c.watching && !c.closed && c.out.empty(); }
+  void CloseIdle(Client& c, std::string_view why) {
+    const std::string line =
+        ErrorLine(nullptr, Error{ErrorCode::kTimeout, fmt::format("closed: idle (nothing sent, not "
+                                                                  "watching): {}",
+                                                                  why)});
+    (void)!::send(c.fd.get(), line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+    c.closed = true;
+  }
+  void EvictIdlestClient() {
+    const auto idlest = std::ranges::min_element(clients_, {}, [](const Client& c) {
+      return Idle(c) ? c.last_active : std::chrono::steady_clock::time_point::max();
+    });
+    if (idlest == clients_.end() || !Idle(*idlest) ||
+        std::chrono::steady_clock::now() - idlest->last_active < kMinIdleToEvict) {
+      return;
+    }
+    CloseIdle(*idlest, "its slot was needed (every daemon.max_clients slot is taken)");
+    clients_.erase(idlest);
+  }
+  void CloseIdleClients() {
+    const auto limit = std::chrono::duration<double>(config_.daemon.idle_timeout_s);
+    for (Client& c : clients_) {
+      if (Idle(c) && std::chrono::steady_clock::now() - c.last_active > limit) {
+        CloseIdle(c, "daemon.idle_timeout_s");
+      }
     }
   }
 
@@ -782,6 +827,7 @@ class Daemon::Impl {
       if (!c.closed && (revents & (POLLIN | POLLHUP))) ReadClient(c);
       if (!c.closed) WriteClient(c);
     }
+    CloseIdleClients();
     clients_.remove_if([](const Client& c) { return c.closed; });
 
     if (panel_) panel_->Show(Pattern(), LampOn(last_event_.state), MonoNow());

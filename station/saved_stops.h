@@ -19,15 +19,18 @@ struct SavedStop {
   double readback_deg = 0.0;
   std::string frame_file;  // relative to the scan folder
   std::string mask_file;
-  cv::Mat frame;         // CV_8UC3; empty unless loaded
-  cv::Mat mask;          // CV_8UC1
-  nlohmann::json entry;  // the manifest's entry, as saved
+  int manifest_position = 0;  // its place in the manifest's "stops" (stops[i]), for messages
+  cv::Mat frame;              // CV_8UC3; empty unless loaded
+  cv::Mat mask;               // CV_8UC1
+  nlohmann::json entry;       // the manifest's entry, as saved
 };
 
 // The stops listed in `manifest` (a scan folder's manifest.json) whose mask (and, with
-// `load_frames`, frame) can be read from `dir`, by index, each index once (the last entry wins).
-// Stops listed but unreadable are left out and named in `skipped` (may be null): a resumed scan
-// captures them again. Errors: bad_input when the manifest has no "stops" array.
+// `load_frames`, frame of the mask's size) can be read from `dir`, by index. Stops listed but
+// unreadable (missing, cut short, damaged: base/image_read.h) are left out and named, with the
+// file and why, in `skipped` (may be null): a resumed scan captures them again. Errors:
+// bad_input naming the file and field when the manifest fails CheckManifest (station/manifest.h:
+// wrong types, a stop listed twice, ...), or naming the mask whose size differs from the others.
 Expected<std::vector<SavedStop>> ReadSavedStops(const std::filesystem::path& dir,
                                                 const nlohmann::json& manifest, bool load_frames,
                                                 std::vector<std::string>* skipped);

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
+#include "station/manifest.h"
 
 namespace revolve::station {
 
@@ -96,6 +97,9 @@ Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir) {
   if (manifest.is_discarded() || !manifest.is_object()) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{}: not a JSON object (damaged manifest)", path.string()));
+  }
+  if (auto checked = CheckManifest(manifest, path.string()); !checked) {
+    return std::unexpected(checked.error());
   }
   return manifest;
 }

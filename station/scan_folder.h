@@ -49,7 +49,9 @@ class ScanFolder {
       std::make_shared<std::atomic<std::int64_t>>(0);
 };
 
-// Reads `dir`/manifest.json. Errors: not_found, bad_input (not JSON; names the file).
+// Reads `dir`/manifest.json and checks it (station/manifest.h: CheckManifest). Errors:
+// not_found, bad_input (not JSON, a field of the wrong type or range, a stop listed twice: names
+// the file and the field).
 Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir);
 
 // The scans in `scans_dir` (at most `max_scans`, the newest by id), oldest first: per scan its

@@ -103,6 +103,18 @@ Expected<ScanGeometry> ScanGeometry::Create(const rc::ReconstructOptions& option
 }
 
 Expected<void> ScanGeometry::CheckFrameSize(int width_px, int height_px) const {
+  if (source_ == GeometrySource::kCamera) {
+    const std::optional<View> view = camera_->KnownView(0.0);
+    if (view && view->width_px > 0 &&
+        (view->width_px != width_px || view->height_px != height_px)) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("the images are {} x {} pixels, but the camera ({}) makes {} x "
+                      "{}: its geometry would not fit them",
+                      width_px, height_px, camera_->Describe(), view->width_px, view->height_px));
+    }
+    return {};
+  }
   if (!calibration_) return {};
   if (auto ok = calibration_->CheckFrameSize(width_px, height_px); !ok) {
     return std::unexpected(WithContext(ok.error(), calibration_file_.string()));

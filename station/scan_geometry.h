@@ -63,8 +63,8 @@ class ScanGeometry {
   const std::string& calibration_text() const { return calibration_text_; }
   const std::filesystem::path& calibration_file() const { return calibration_file_; }
 
-  // bad_input unless frames of this size are what the calibration was made at (no calibration:
-  // any size).
+  // bad_input unless frames of this size are what the calibration was made at, or what the
+  // camera whose known geometry is used makes (thesis mode: any size).
   Expected<void> CheckFrameSize(int width_px, int height_px) const;
 
   // The frame as the views describe it: undistorted with a calibration whose lens distorts,

@@ -5,7 +5,10 @@
 
 #include <fmt/format.h>
 
+#include "calibrate/calibration.h"
+#include "capture/synthetic/synthetic_camera.h"
 #include "config/reader.h"
+#include "turntable/mock/mock_turntable.h"
 
 namespace revolve::station {
 namespace {
@@ -116,6 +119,7 @@ Expected<DaemonOptions> ParseDaemonOptions(const config::Section& s) {
   r.String("socket_group", o.socket_group);
   r.Integer("max_clients", o.max_clients, 1, 1024);
   r.Integer("max_request_bytes", o.max_request_bytes, 64, 1 << 20);
+  r.Number("idle_timeout_s", o.idle_timeout_s, 1.0, 86400.0);
   if (auto done = r.Finish(); !done) return std::unexpected(done.error());
   return o;
 }
@@ -416,6 +420,37 @@ Expected<StationConfig> ApplyRecipe(const StationConfig& base, std::string_view 
   merged->recipes = base.recipes;
   merged->station.recipe = base.station.recipe;
   return merged;
+}
+
+Expected<void> CheckWithoutDevices(const StationConfig& config) {
+  const auto in_config = [&config](const Error& error) {
+    return Error{error.code, fmt::format("{}: {}", config.origin, error.message)};
+  };
+  if (auto segmenter = capture::CreateSegmenter(config.segment); !segmenter) {
+    return std::unexpected(in_config(segmenter.error()));
+  }
+  if (config.turntable.backend == "mock") {
+    if (auto valid = turntable::ValidateMockOptions(config.turntable.mock); !valid) {
+      return std::unexpected(in_config(valid.error()));
+    }
+  }
+  if (config.camera.backend == "synthetic") {
+    if (auto valid = capture::ValidateSyntheticOptions(config.camera.synthetic); !valid) {
+      return std::unexpected(in_config(valid.error()));
+    }
+  }
+  if (!config.calibration.file.empty()) {
+    auto calibration = calibrate::LoadCalibration(config.calibration.file);
+    if (!calibration) return std::unexpected(calibration.error());
+    if (auto rig = calibration->ToRig(); !rig) {
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("{}: {} (calibration.file in {}: a lens-only calibration; run "
+                      "`revolve calibrate axis` with the board on the plate)",
+                      config.calibration.file.string(), rig.error().message, config.origin));
+    }
+  }
+  return {};
 }
 
 }  // namespace revolve::station

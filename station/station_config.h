@@ -73,6 +73,9 @@ struct DaemonOptions {
   std::string socket_group;                          // group name; "" = the daemon's own group
   int max_clients = 32;                              // [1, 1024]
   int max_request_bytes = 4096;                      // [64, 1048576]
+  // A client that sends nothing and watches nothing for this long is closed; with every slot
+  // taken, the one idle longest gives its slot to a newcomer. [1, 86400]
+  double idle_timeout_s = 30.0;
 };
 
 // [web]: the web console and HTTP API (station/web_server.h, docs/web-console.md).
@@ -170,6 +173,12 @@ Expected<StationConfig> LoadStationConfig(const std::optional<std::filesystem::p
 // reproduces the scan. Errors: not_found for an unknown recipe (naming the known ones);
 // bad_input naming file:line:column when a recipe's value does not fit its key.
 Expected<StationConfig> ApplyRecipe(const StationConfig& base, std::string_view name);
+
+// Everything a scan checks of its configuration short of opening devices, shared by `revolve
+// scan`, the daemon's start and `revolve check-config`: the segmenter's options, the configured
+// turntable and camera backends' option sets, and the calibration file (loaded, and it must hold
+// the turntable's axis). Errors name the file (and the key, where the options have one).
+Expected<void> CheckWithoutDevices(const StationConfig& config);
 
 // The names of the recipes: "default" first, then the configured ones.
 std::vector<std::string> RecipeNames(const StationConfig& config);

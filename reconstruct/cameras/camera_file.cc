@@ -160,6 +160,13 @@ Expected<CameraFile> ReadCameraFile(const std::filesystem::path& path) {
   if (!std::filesystem::is_regular_file(path, ec)) {
     return MakeError(ErrorCode::kNotFound, fmt::format("{}: camera file not found", path.string()));
   }
+  // A line is at most a few hundred bytes: 64 MB holds far more views than any data set.
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{64} << 20;
+  if (const std::uintmax_t size = std::filesystem::file_size(path, ec); !ec && size > kMaxBytes) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("{}: {} MB is too large for a camera file (at most {} MB)",
+                                 path.string(), size >> 20, kMaxBytes >> 20));
+  }
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();

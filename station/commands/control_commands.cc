@@ -285,6 +285,7 @@ toml::table EffectiveTable(const StationConfig& c, const toml::table& given) {
   daemon.insert_or_assign("socket_group", c.daemon.socket_group);
   daemon.insert_or_assign("max_clients", c.daemon.max_clients);
   daemon.insert_or_assign("max_request_bytes", c.daemon.max_request_bytes);
+  daemon.insert_or_assign("idle_timeout_s", c.daemon.idle_timeout_s);
   toml::table& web = table("web");
   web.insert_or_assign("listen", c.web.listen);
   web.insert_or_assign("token_file", c.web.token_file);
@@ -331,6 +332,11 @@ int RunCheckConfigCommand(const std::filesystem::path& file, std::ostream& out, 
       fmt::print(err, "revolve check-config: {}\n", applied.error().message);
       return kExitConfig;
     }
+    if (auto checked = CheckWithoutDevices(*applied); !checked) {
+      fmt::print(err, "revolve check-config: {}{}\n", checked.error().message,
+                 name == "default" ? "" : fmt::format(" (recipe \"{}\")", name));
+      return kExitConfig;
+    }
     recipes += fmt::format("#   {:<12} {} stops x {} deg, settle {} ms, {} {} at {}, formats {}\n",
                            name, applied->scan.stops, applied->scan.step_deg,
                            applied->scan.settle_ms, applied->segment.method,
@@ -340,7 +346,9 @@ int RunCheckConfigCommand(const std::filesystem::path& file, std::ostream& out, 
   std::ostringstream toml_text;
   toml_text << toml::toml_formatter(EffectiveTable(*config, document->root), kTomlFlags);
   fmt::print(out,
-             "# {}: valid.\n"
+             "# {}: valid: every check a scan makes short of opening the devices passed\n"
+             "# (every key, range and recipe; the segmenter, the backends' options and the\n"
+             "# calibration file). The turntable and camera themselves are not opened.\n"
              "# The effective configuration: every key of [scan], [station], [daemon] and "
              "[operator]\n"
              "# with its value (defaults filled in); the other sections as given (their "

@@ -6,6 +6,8 @@
 #include <fmt/ostream.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "base/atomic_file.h"
+#include "base/image_read.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/commands/scan_command.h"
@@ -15,6 +17,43 @@
 #include "station/station_config.h"
 
 namespace revolve::station {
+namespace {
+
+nlohmann::json Vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+Expected<void> WriteReport(const std::filesystem::path& file, const std::filesystem::path& dir,
+                           const nlohmann::json& manifest,
+                           const reconstruct::ReconstructOptions& recon,
+                           const ScanGeometry& geometry, const reconstruct::MeshStats& stats,
+                           const std::vector<std::filesystem::path>& files,
+                           std::size_t stops_used) {
+  nlohmann::json report = {{"source", "revolve reconstruct"},
+                           {"scan_dir", dir.string()},
+                           {"scan_id", manifest.value("scan_id", std::string())},
+                           {"recipe", manifest.value("recipe", std::string("default"))},
+                           {"method", recon.method},
+                           {"resolution", recon.resolution},
+                           {"stops_used", stops_used},
+                           {"stops_planned", manifest.value("stops_planned", 0)}};
+  report.update(geometry.ReportJson());
+  const std::string unit = geometry.metric() ? "mm" : "px";
+  nlohmann::json names = nlohmann::json::array();
+  for (const auto& f : files) names.push_back(f.filename().string());
+  report["model"] = {{"files", names},
+                     {"vertices", stats.vertex_count},
+                     {"triangles", stats.triangle_count},
+                     {"volume_" + unit + "3", stats.volume_mm3},
+                     {"surface_area_" + unit + "2", stats.area_mm2},
+                     {"bbox_min_" + unit, Vec3(stats.bbox_min_mm)},
+                     {"bbox_max_" + unit, Vec3(stats.bbox_max_mm)},
+                     {"dimensions_" + unit, Vec3(stats.bbox_max_mm - stats.bbox_min_mm)},
+                     {"watertight", stats.closed},
+                     {"consistently_oriented", stats.oriented}};
+  const std::string text = report.dump(2) + "\n";
+  return WriteFileAtomically(file, std::string_view(text));
+}
+
+}  // namespace
 
 int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_token stop,
                           std::ostream& out, std::ostream& err) {
@@ -28,6 +67,12 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
   if (!config) {
     fmt::print(err, "revolve reconstruct: {}\n", config.error().message);
     return kExitConfig;
+  }
+  // The output folder first: a read-only or unwritable one is said before any work.
+  const std::filesystem::path out_dir = options.out ? *options.out : dir / "model";
+  if (auto made = CreateOutputFolder(out_dir); !made) {
+    fmt::print(err, "revolve reconstruct: {}\n", made.error().message);
+    return kExitFailed;
   }
   reconstruct::ReconstructOptions recon = config->reconstruct;
   if (options.method) recon.method = *options.method;
@@ -49,6 +94,19 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     fmt::print(err, "revolve reconstruct: {}\n", geometry.error().message);
     return kExitConfig;
   }
+  // A camera whose own geometry carves must be the one the scan was made with: a scan.toml
+  // changed or cut short (still valid TOML, so other defaults) would carve with other views.
+  if (geometry->source() == GeometrySource::kCamera) {
+    const std::string recorded = manifest->value("camera", std::string());
+    if (!recorded.empty() && recorded != (*camera)->Describe()) {
+      fmt::print(err,
+                 "revolve reconstruct: {}: the camera it describes ({}) is not the one "
+                 "{} records for this scan ({}): scan.toml was changed or cut short; restore it\n",
+                 (dir / "scan.toml").string(), (*camera)->Describe(),
+                 (dir / "manifest.json").string(), recorded);
+      return kExitConfig;
+    }
+  }
   std::vector<std::string> skipped;
   auto stops = ReadSavedStops(dir, *manifest, false, &skipped);
   if (!stops) {
@@ -60,6 +118,14 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     fmt::print(err, "revolve reconstruct: {}: no stop with a readable mask\n", dir.string());
     return kExitFailed;
   }
+  // The masks against the camera of scan.toml (or the calibration): another size would carve
+  // with the wrong view.
+  if (auto size = geometry->CheckFrameSize(stops->front().mask.cols, stops->front().mask.rows);
+      !size) {
+    fmt::print(err, "revolve reconstruct: {}: {}\n", (dir / stops->front().mask_file).string(),
+               size.error().message);
+    return kExitConfig;
+  }
   const int planned = manifest->value("stops_planned", 0);
   fmt::print(out,
              "revolve reconstruct: {} ({}), {} of {} stops, {} at resolution {}, {} geometry\n",
@@ -70,8 +136,21 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
       fmt::print(err, "revolve reconstruct: aborted\n");
       return kExitAborted;
     }
-    cv::Mat frame = cv::imread((dir / s.frame_file).string(), cv::IMREAD_COLOR);
-    if (frame.size() != s.mask.size()) frame.release();
+    cv::Mat frame;
+    if (!s.frame_file.empty()) {
+      ImageReadOptions read;
+      read.imread_flags = cv::IMREAD_COLOR;
+      read.expected_size = s.mask.size();
+      if (Expected<cv::Mat> loaded = ReadImageFile(dir / s.frame_file, read); loaded) {
+        frame = std::move(*loaded);
+      } else {
+        fmt::print(err,
+                   "revolve reconstruct: warning: stop {} ({} stops[{}].frame): {}; the stop is "
+                   "carved but gives no colour\n",
+                   s.index, (dir / "manifest.json").string(), s.manifest_position,
+                   loaded.error().message);
+      }
+    }
     if (cv::countNonZero(s.mask) == 0) {
       fmt::print(err, "revolve reconstruct: stop {}: the silhouette is empty; not used\n", s.index);
       continue;
@@ -86,14 +165,22 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
     fmt::print(err, "revolve reconstruct: meshing: {}\n", mesh.error().message);
     return kExitFailed;
   }
-  const std::filesystem::path out_dir = options.out ? *options.out : dir / "model";
-  std::filesystem::create_directories(out_dir, ec);
   auto files = reconstruct::WriteModel(*mesh, out_dir, "model", recon.formats);
   if (!files) {
     fmt::print(err, "revolve reconstruct: {}\n", files.error().message);
     return kExitFailed;
   }
   const reconstruct::MeshStats stats = reconstruct::ComputeStats(*mesh);
+  // The report of this model, next to it: the scan's own report.json when the model replaces
+  // the scan's, else in --out. A report of an earlier model is never left beside a new one.
+  const std::filesystem::path report_file =
+      options.out ? *options.out / "report.json" : dir / "report.json";
+  if (auto w =
+          WriteReport(report_file, dir, *manifest, recon, *geometry, stats, *files, stops->size());
+      !w) {
+    fmt::print(err, "revolve reconstruct: {}\n", w.error().message);
+    return kExitFailed;
+  }
   std::string names;
   for (const auto& f : *files) names += (names.empty() ? "" : ", ") + f.string();
   const std::string unit = geometry->metric() ? "mm" : "px";

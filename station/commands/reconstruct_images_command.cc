@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <ostream>
 
 #include <fmt/format.h>
@@ -57,8 +58,14 @@ std::string CheckOptions(const ReconstructImagesOptions& options) {
       return fmt::format("--formats: \"{}\" is not one of ply, obj, stl, glb, wrl", format);
     }
   }
+  if (!(options.max_image_mp >= 0.01 && options.max_image_mp <= 10000.0)) {
+    return fmt::format("--max-image-mp {}: expected 0.01..10000", options.max_image_mp);
+  }
   if (options.bbox) {
     const auto& b = *options.bbox;
+    if (!std::all_of(b.begin(), b.end(), [](double v) { return std::isfinite(v); })) {
+      return "--bbox X0 Y0 Z0 X1 Y1 Z1: expected finite numbers";
+    }
     if (!(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) {
       return "--bbox X0 Y0 Z0 X1 Y1 Z1: expected X0 < X1, Y0 < Y1 and Z0 < Z1";
     }
@@ -71,6 +78,11 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   nlohmann::json times;
   const Clock::time_point start = Clock::now();
 
+  // The output folder first: a read-only or unwritable --out is said before any work.
+  if (auto made = CreateOutputFolder(options.out / "model"); !made) {
+    return std::unexpected(made.error());
+  }
+
   // Inputs.
   Clock::time_point t = Clock::now();
   const bool legacy_threshold = options.segment == "threshold";
@@ -82,6 +94,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
     segment_options = std::move(*parsed);
   }
   rc::ImageSetOptions set_options;
+  set_options.max_image_pixels = static_cast<std::int64_t>(options.max_image_mp * 1e6);
   set_options.pattern = options.pattern;
   set_options.step_deg = options.step_deg;
   set_options.segmentation.threshold = options.threshold;

@@ -43,6 +43,8 @@ struct ReconstructImagesOptions {
   int threshold = 20;
   int row_step_px = 9;      // --row-step: meridian feature points every k-th row (h_RANGE)
   bool both_sides = false;  // --both-sides: meridian from both sides of the axis (T/2 images)
+  // --max-image-mp: larger images are refused from their headers, before decoding.
+  double max_image_mp = 100.0;
 };
 
 // Runs the reconstruction: progress and a summary to `out`, errors to `err` (each naming the file

@@ -83,11 +83,23 @@ int RunScanCommand(const ScanCommandOptions& options, std::stop_token stop, std:
     fmt::print(err, "revolve scan: {}\n", config.error().message);
     return kExitConfig;
   }
+  if (auto checked = CheckWithoutDevices(*config); !checked) {
+    fmt::print(err, "revolve scan: {}\n", checked.error().message);
+    return kExitConfig;
+  }
   auto devices = OpenDevices(*config);
   if (!devices) {
     fmt::print(err, "revolve scan: {}\n", devices.error().message);
     return kExitConfig;
   }
+  // Probe the camera before a folder is made: a missing device is a configuration error
+  // (exit 78, nothing created) whatever the backend, as a missing drive is.
+  if (auto started = devices->camera->Start(); !started) {
+    fmt::print(err, "revolve scan: camera: {} (check [camera] in {})\n", started.error().message,
+               config->origin);
+    return started.error().code == ErrorCode::kBusy ? kExitBusy : kExitConfig;
+  }
+  devices->camera->Stop();
   const std::filesystem::path dir =
       options.out ? *options.out : "scans" / std::filesystem::path(NewScanId());
   auto folder = ScanFolder::Create(dir);

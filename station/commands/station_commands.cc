@@ -76,6 +76,9 @@ class StationCommandsImpl final : public StationCommands {
                              "With --images, meridian: feature points every k-th row (default 9)");
     reconstruct_->add_flag("--both-sides", images_.both_sides,
                            "With --images, meridian: both sides of the axis (T/2 images)");
+    reconstruct_->add_option("--max-image-mp", images_.max_image_mp,
+                             "With --images: refuse images over this many megapixels, from "
+                             "their headers (default 100)");
 
     check_ = app.add_subcommand("check-config", "Validate a config and print the effective one");
     check_->add_option("FILE", check_file_, "The config file");
@@ -140,7 +143,8 @@ class StationCommandsImpl final : public StationCommands {
       return kExitUsage;
     }
     for (const char* option : {"--pattern", "--step-deg", "--cameras", "--bbox", "--threshold",
-                               "--segment", "--config", "--row-step", "--both-sides"}) {
+                               "--segment", "--config", "--row-step", "--both-sides",
+                               "--max-image-mp"}) {
       if (reconstruct_->count(option) > 0) {
         err << "revolve reconstruct: " << option << " applies to --images only\n";
         return kExitUsage;

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -250,6 +251,50 @@ TEST(ConfigSection, UnknownKeysNameFileLineAndDottedKey) {
   ASSERT_FALSE(top);
   EXPECT_THAT(top.error().message, StartsWith("test.toml:6:"));
   EXPECT_THAT(top.error().message, HasSubstr("unknown key \"bogus\""));
+}
+
+}  // namespace
+}  // namespace revolve::config
+
+namespace revolve::config {
+namespace {
+
+// Issue 21, cause 1: nan, inf and integers a double cannot hold exactly never pass a number key,
+// whatever its range; the error names file:line:column and the key.
+TEST(ConfigSection, NonFiniteAndUnrepresentableNumbersAreErrorsNamingTheKey) {
+  for (const char* value : {"nan", "+nan", "-nan", "inf", "-inf", "9007199254740993",
+                            "-9007199254740993", "9223372036854775807"}) {
+    const Document document =
+        MustParse(std::string("[quality]\nmax_area_change = ") + value + "\n");
+    const Section quality = MustChild(Section::Root(document), "quality");
+    const Expected<double> number = quality.Number("max_area_change", 0.35, -1e300, 1e300);
+    ASSERT_FALSE(number) << value << " was accepted as " << *number;
+    EXPECT_THAT(number.error().message, StartsWith("test.toml:2:19: quality.max_area_change: "))
+        << value;
+    EXPECT_EQ(number.error().code, ErrorCode::kBadInput);
+  }
+  // 2^53 itself is exact, and so is any smaller integer.
+  const Document exact = MustParse("x = 9007199254740992\ny = -3\n");
+  EXPECT_EQ(*Section::Root(exact).Number("x", 0.0, 0.0, 1e300), 9007199254740992.0);
+  EXPECT_EQ(*Section::Root(exact).Number("y", 0.0, -10.0, 10.0), -3.0);
+}
+
+TEST(ConfigSection, ANanBoundNeverLetsAValueThrough) {
+  const Document document = MustParse("x = 1.0\n");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(Section::Root(document).Number("x", 0.0, nan, 2.0));
+  EXPECT_FALSE(Section::Root(document).Number("x", 0.0, 0.0, nan));
+}
+
+TEST(ConfigSection, NumberArraysRejectNonFiniteElementsNamingTheKey) {
+  for (const char* value : {"[1.0, nan]", "[inf]", "[-inf, 2]", "[9007199254740993]"}) {
+    const Document document = MustParse(std::string("[segment]\nchroma_key_bgr = ") + value);
+    const Section segment = MustChild(Section::Root(document), "segment");
+    const Expected<std::vector<double>> numbers = segment.Numbers("chroma_key_bgr", {});
+    ASSERT_FALSE(numbers) << value;
+    EXPECT_THAT(numbers.error().message, HasSubstr("test.toml:2:"));
+    EXPECT_THAT(numbers.error().message, HasSubstr("segment.chroma_key_bgr: element "));
+  }
 }
 
 }  // namespace

@@ -693,3 +693,58 @@ TEST_F(ModbusE2eTest, ScanThroughTheDriveSimulatorOnASocatPtyPair) {
 
 }  // namespace
 }  // namespace revolve::e2e
+
+namespace revolve::e2e {
+namespace {
+
+// Issue 21: 32 clients that connect and say nothing must not lock `revolve status` out; the one
+// idle longest gives its slot, and every silent client is closed after daemon.idle_timeout_s.
+TEST_F(DaemonE2eTest, SilentClientsCannotHoldTheControlSlots) {
+  StartDaemon(WriteConfig(Config()));
+  std::vector<ControlClient> silent;
+  for (int i = 0; i < 32; ++i) silent.push_back(Client());
+  std::this_thread::sleep_for(700ms);  // longer than the eviction grace
+  const CommandResult status = Cli({"status"}, 20s);
+  EXPECT_EQ(status.exit_code, 0) << status.out << status.err;
+  EXPECT_TRUE(Contains(status.out, "state")) << status.out;
+  EXPECT_FALSE(Contains(status.err, "too many clients")) << status.err;
+}
+
+TEST_F(DaemonE2eTest, ASilentClientIsClosedAfterTheIdleTimeout) {
+  std::string config = Config();
+  const std::string mode = "socket_mode = \"0640\"\n";
+  config.replace(config.find(mode), mode.size(), mode + "idle_timeout_s = 1.0\n");
+  StartDaemon(WriteConfig(config));
+  const fs::path socket = Socket();
+  UniqueFd fd(::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0));
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", socket.c_str());
+  ASSERT_EQ(::connect(fd.get(), reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  pollfd p{fd.get(), POLLIN, 0};
+  ASSERT_EQ(::poll(&p, 1, 5000), 1) << "the daemon kept a silent client for 5 s";
+  char buf[512] = {};
+  const ssize_t n = ::recv(fd.get(), buf, sizeof(buf) - 1, 0);
+  ASSERT_GT(n, 0);
+  EXPECT_TRUE(Contains(buf, "closed: idle")) << buf;
+  EXPECT_EQ(::recv(fd.get(), buf, sizeof(buf), 0), 0);  // then the daemon hangs up
+}
+
+// Issue 21, cause 7: resuming a complete scan is refused at once, not answered "resumed".
+TEST_F(DaemonE2eTest, ResumingACompleteScanIsRefused) {
+  StartDaemon(WriteConfig(Config()));
+  const CommandResult start = Cli({"start", "--watch", "--recipe", "tiny"});
+  ASSERT_EQ(start.exit_code, 0) << start.out << start.err;
+  const auto json = nlohmann::json::parse(Cli({"status", "--json"}).out);
+  const std::string id = fs::path(json["scan"]["dir"].get<std::string>()).filename().string();
+  const fs::path manifest = fs::path(json["scan"]["dir"].get<std::string>()) / "manifest.json";
+  const std::string before = ReadAll(manifest);
+  const CommandResult resume = Cli({"start", "--resume", id});
+  EXPECT_NE(resume.exit_code, 0) << resume.out;
+  EXPECT_TRUE(Contains(resume.err, "the scan is complete, nothing to resume")) << resume.err;
+  EXPECT_FALSE(Contains(resume.out, "resumed")) << resume.out;
+  EXPECT_EQ(ReadAll(manifest), before);  // nothing touched
+}
+
+}  // namespace
+}  // namespace revolve::e2e

@@ -1,0 +1,115 @@
+#include "base/image_read.h"
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+namespace revolve {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::unexpected<Error> Named(const fs::path& path, ErrorCode code, std::string_view what) {
+  return MakeError(code, fmt::format("{}: {}", path.string(), what));
+}
+
+// The file's bytes, after checking it is a readable regular file no larger than an image of
+// `max_pixels` could reasonably be.
+Expected<std::vector<std::uint8_t>> ReadBytes(const fs::path& path, std::int64_t max_pixels) {
+  std::error_code ec;
+  const fs::file_status link = fs::symlink_status(path, ec);
+  if (ec || !fs::exists(link)) return Named(path, ErrorCode::kNotFound, "no such file");
+  const fs::file_status target = fs::status(path, ec);
+  if (fs::is_symlink(link) && !fs::exists(target)) {
+    const fs::path to = fs::read_symlink(path, ec);
+    return Named(
+        path, ErrorCode::kNotFound,
+        fmt::format("a dangling symbolic link (its target {} does not exist)", to.string()));
+  }
+  if (!fs::is_regular_file(target)) return Named(path, ErrorCode::kBadInput, "not a regular file");
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) return Named(path, ErrorCode::kIo, fmt::format("cannot read: {}", ec.message()));
+  // Uncompressed 16-bit RGBA plus headers: no image within the limit is larger.
+  const std::uintmax_t max_bytes = static_cast<std::uintmax_t>(max_pixels) * 8 + (1u << 20);
+  if (size > max_bytes) {
+    return Named(path, ErrorCode::kBadInput,
+                 fmt::format("{} MB is too large for an image of at most {:.0f} megapixels",
+                             size >> 20, static_cast<double>(max_pixels) / 1e6));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return Named(path, ErrorCode::kIo, fmt::format("cannot open: {}", std::strerror(errno)));
+  }
+  std::vector<std::uint8_t> bytes(size);
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size) {
+    return Named(path, ErrorCode::kIo, "cannot read the whole file");
+  }
+  return bytes;
+}
+
+Expected<ImageHeader> CheckedHeader(const fs::path& path, std::span<const std::uint8_t> bytes,
+                                    std::int64_t max_pixels) {
+  Expected<ImageHeader> header = CheckImageBytes(bytes);
+  if (!header) {
+    return Named(
+        path, ErrorCode::kBadInput,
+        fmt::format("{} (an unreadable image: replace or remove it)", header.error().message));
+  }
+  if (header->pixels() > max_pixels) {
+    return Named(path, ErrorCode::kBadInput,
+                 fmt::format("{} x {} pixels ({:.1f} megapixels) is over the limit of {:.0f} "
+                             "megapixels (--max-image-mp raises it)",
+                             header->width_px, header->height_px,
+                             static_cast<double>(header->pixels()) / 1e6,
+                             static_cast<double>(max_pixels) / 1e6));
+  }
+  return header;
+}
+
+}  // namespace
+
+Expected<ImageHeader> ReadImageHeader(const fs::path& path, std::int64_t max_pixels) {
+  auto bytes = ReadBytes(path, max_pixels);
+  if (!bytes) return std::unexpected(bytes.error());
+  return CheckedHeader(path, *bytes, max_pixels);
+}
+
+Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& options) {
+  auto bytes = ReadBytes(path, options.max_pixels);
+  if (!bytes) return std::unexpected(bytes.error());
+  auto header = CheckedHeader(path, *bytes, options.max_pixels);
+  if (!header) return std::unexpected(header.error());
+  if (options.expected_size && (header->width_px != options.expected_size->width ||
+                                header->height_px != options.expected_size->height)) {
+    return Named(path, ErrorCode::kBadInput,
+                 fmt::format("is {} x {} pixels, but the other images are {} x {}",
+                             header->width_px, header->height_px, options.expected_size->width,
+                             options.expected_size->height));
+  }
+  cv::Mat image;
+  try {
+    image = cv::imdecode(*bytes, options.imread_flags);
+  } catch (const cv::Exception& e) {
+    return Named(path, ErrorCode::kBadInput, fmt::format("cannot decode: {}", e.what()));
+  }
+  if (image.empty()) {
+    return Named(path, ErrorCode::kBadInput,
+                 fmt::format("cannot decode the {} data (damaged?)", ToString(header->format)));
+  }
+  // EXIF orientation may turn a JPEG by a quarter.
+  const bool same = image.cols == header->width_px && image.rows == header->height_px;
+  const bool turned = image.cols == header->height_px && image.rows == header->width_px;
+  if (!same && !turned) {
+    return Named(path, ErrorCode::kBadInput,
+                 fmt::format("decoded as {} x {} although its header says {} x {} (damaged?)",
+                             image.cols, image.rows, header->width_px, header->height_px));
+  }
+  return image;
+}
+
+}  // namespace revolve
