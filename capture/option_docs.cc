@@ -65,6 +65,8 @@ constexpr config::KeyDoc kKeys[] = {
     {"camera.synthetic", "fixture_mm", "mm",
      "boxes fixed to the table: x0 y0 z0 x1 y1 z1 (table frame), repeated"},
     {"camera.synthetic", "fixture_bgr", "B G R", "fixture colour"},
+    {"camera.synthetic", "texture", "",
+     "the object's surface: a checker, or speckle that feature matchers (COLMAP) can match"},
     {"camera.synthetic", "blur_sigma_px", "px", "optical blur (Gaussian σ)"},
     {"camera.synthetic", "noise_sigma", "grey levels", "standard deviation of the sensor noise"},
     {"camera.synthetic", "seed", "",
@@ -134,6 +136,13 @@ constexpr config::KeyDoc kKeys[] = {
      "chroma: the backdrop colour; empty = estimated per frame from the region of interest's "
      "outline (which must show backdrop)",
      "", "", "3 numbers in [0, 255], or none"},
+    {"segment", "backdrop_bgr", "B G R",
+     "graphcut: the backdrop's colour; empty: estimated from the outline of the region of "
+     "interest"},
+    {"segment", "refine", "",
+     "background: refine the difference mask's edge with the graph cut, as graphcut does"},
+    {"segment", "refine_max_side_px", "px",
+     "graphcut and refine: the cut runs on the image reduced to at most this side"},
     {"segment", "chroma_fraction", "",
      "chroma: a pixel whose chroma carries at least this share of the key's is backdrop"},
     {"segment", "roi_px", "px",

@@ -16,6 +16,9 @@ constexpr config::TableDoc kTables[] = {
      "is refused. Captures and moves are counted from the start of `revolve scan` or `revolved`."},
     {"daemon", ""},
     {"operator", ""},
+    {"web",
+     "The live web console and HTTP API of revolved ([web console](web-console.md)). A listen "
+     "address other than loopback needs `token_file`."},
     {"recipes.NAME",
      "Named scans; see [Recipes](station.md#recipes). Each key overrides one key of the base "
      "configuration; an absent key leaves it as it is."},
@@ -61,6 +64,9 @@ constexpr config::KeyDoc kKeys[] = {
      "an existing group; empty: the daemon's group"},
     {"daemon", "max_clients", "count", "simultaneous connections"},
     {"daemon", "max_request_bytes", "bytes", "longest request line"},
+    {"daemon", "idle_timeout_s", "s",
+     "a client that neither sends nor watches is closed after this long (and gives up its slot "
+     "to a newcomer when every slot is taken)"},
     {"operator", "chip", "", "name, `/dev` path or label (`\"pinctrl-bcm2711\"`)"},
     {"operator", "start_button", "line", "start button input", "integer or string", "none",
      "a line offset 0–1023 or a line name (`\"GPIO17\"`)"},
@@ -86,6 +92,13 @@ constexpr config::KeyDoc kKeys[] = {
     {"recipes.NAME", "method", "", "overrides `[reconstruct] method`, with its values"},
     {"recipes.NAME", "resolution", "voxels", "overrides `[reconstruct] resolution`"},
     {"recipes.NAME", "formats", "", "overrides `[reconstruct] formats`, with its values"},
+    {"web", "listen", "host:port",
+     "where the console listens; `\"\"` turns it off; port 0 takes any free port"},
+    {"web", "token_file", "",
+     "a file holding the access token: POSTs need it on loopback, every API request elsewhere"},
+    {"web", "max_connections", "count", "simultaneous HTTP connections"},
+    {"web", "max_request_bytes", "bytes", "largest request (headers and body)"},
+    {"web", "timeout_s", "s", "read and write timeout of a connection"},
 };
 
 }  // namespace
