@@ -472,7 +472,7 @@ cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
   if (box.area() == 0) box = cv::Rect(0, 0, image.cols, image.rows);
   std::array<std::vector<std::uint8_t>, 3> channels;
   auto add = [&](int x, int y) {
-    const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+    const cv::Vec3b& p = image.at<cv::Vec3b>(y, x);
     for (int c = 0; c < 3; ++c) channels[c].push_back(p[c]);
   };
   for (int x = box.x; x < box.x + box.width; ++x) {

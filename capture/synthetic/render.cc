@@ -313,7 +313,7 @@ RenderOutput RenderScene(const Scene& scene, const SimProjection& projection,
                          std::uint64_t sequence, bool draw_object) {
   const int width = projection.width_px();
   const int height = projection.height_px();
-  const Eigen::Vector3f backdrop = settings.backdrop_bgr;
+  const Eigen::Vector3f& backdrop = settings.backdrop_bgr;
   const Stage& stage = settings.stage;
   RenderOutput out;
   cv::Mat image(height, width, CV_32FC3, cv::Scalar(backdrop[0], backdrop[1], backdrop[2]));
