@@ -53,3 +53,21 @@ inline Error WithContext(Error error, std::string_view context) {
 }
 
 }  // namespace revolve
+
+// Inside a function returning Expected<...>: evaluates `expr` (an Expected); on error returns it
+// from the enclosing function, else assigns its value to `out`.
+#define REVOLVE_ASSIGN_OR_RETURN(out, expr)              \
+  do {                                                   \
+    auto value_ = (expr);                                \
+    if (!value_) return std::unexpected(value_.error()); \
+    (out) = *std::move(value_);                          \
+  } while (false)
+
+// Inside a function returning Expected<...>: evaluates `expr` (an Expected<void> or any
+// Expected); on error returns it from the enclosing function.
+#define REVOLVE_RETURN_IF_ERROR(expr)                      \
+  do {                                                     \
+    if (auto checked_ = (expr); !checked_) {               \
+      return std::unexpected(std::move(checked_).error()); \
+    }                                                      \
+  } while (false)

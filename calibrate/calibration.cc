@@ -42,25 +42,17 @@ Expected<std::int64_t> RequiredInteger(const config::Section& section, std::stri
   return section.Integer(key, 0, min, max);
 }
 
-// Reads `key` into `*out`, returning the error (if any) from the enclosing function.
-#define REVOLVE_READ(out, expr)                          \
-  do {                                                   \
-    auto value_ = (expr);                                \
-    if (!value_) return std::unexpected(value_.error()); \
-    (out) = *value_;                                     \
-  } while (false)
-
 Expected<Board> ParseBoard(const config::Section& s) {
   Board board;
   std::string type;
-  REVOLVE_READ(type, s.String("type", "chessboard", {"chessboard", "charuco"}));
+  REVOLVE_ASSIGN_OR_RETURN(type, s.String("type", "chessboard", {"chessboard", "charuco"}));
   board.type = type == "charuco" ? BoardType::kCharuco : BoardType::kChessboard;
-  REVOLVE_READ(board.cols, RequiredInteger(s, "cols", 3, 100));
-  REVOLVE_READ(board.rows, RequiredInteger(s, "rows", 3, 100));
-  REVOLVE_READ(board.square_mm, RequiredNumber(s, "square_mm", 1e-3, 1e4));
+  REVOLVE_ASSIGN_OR_RETURN(board.cols, RequiredInteger(s, "cols", 3, 100));
+  REVOLVE_ASSIGN_OR_RETURN(board.rows, RequiredInteger(s, "rows", 3, 100));
+  REVOLVE_ASSIGN_OR_RETURN(board.square_mm, RequiredNumber(s, "square_mm", 1e-3, 1e4));
   if (board.type == BoardType::kCharuco) {
-    REVOLVE_READ(board.marker_mm, RequiredNumber(s, "marker_mm", 1e-3, 1e4));
-    REVOLVE_READ(board.dictionary, s.String("dictionary", board.dictionary));
+    REVOLVE_ASSIGN_OR_RETURN(board.marker_mm, RequiredNumber(s, "marker_mm", 1e-3, 1e4));
+    REVOLVE_ASSIGN_OR_RETURN(board.dictionary, s.String("dictionary", board.dictionary));
   }
   if (auto valid = board.Validate(); !valid) {
     return std::unexpected(s.BadValue("cols", valid.error().message));
@@ -197,33 +189,33 @@ Expected<Calibration> ParseCalibration(std::string text, std::string origin) {
   if (!document) return std::unexpected(document.error());
   const config::Section root = config::Section::Root(*document);
   Calibration c;
-  REVOLVE_READ(c.format_version, RequiredInteger(root, "format_version", 1, 1000000));
+  REVOLVE_ASSIGN_OR_RETURN(c.format_version, RequiredInteger(root, "format_version", 1, 1000000));
   if (c.format_version > kCalibrationFormatVersion) {
     return std::unexpected(root.BadValue(
         "format_version",
         fmt::format("format {} was written by a newer revolve; this one ({}) reads up to {}",
                     c.format_version, SoftwareVersion(), kCalibrationFormatVersion)));
   }
-  REVOLVE_READ(c.software_version, root.String("software_version", "unknown"));
-  REVOLVE_READ(c.created, root.String("created", ""));
+  REVOLVE_ASSIGN_OR_RETURN(c.software_version, root.String("software_version", "unknown"));
+  REVOLVE_ASSIGN_OR_RETURN(c.created, root.String("created", ""));
 
   config::Section board_section = root;
-  REVOLVE_READ(board_section, root.Child("board"));
-  REVOLVE_READ(c.board, ParseBoard(board_section));
+  REVOLVE_ASSIGN_OR_RETURN(board_section, root.Child("board"));
+  REVOLVE_ASSIGN_OR_RETURN(c.board, ParseBoard(board_section));
 
   config::Section lens = root;
-  REVOLVE_READ(lens, root.Child("lens"));
+  REVOLVE_ASSIGN_OR_RETURN(lens, root.Child("lens"));
   Intrinsics& in = c.camera.intrinsics;
-  REVOLVE_READ(in.width_px, RequiredInteger(lens, "width_px", 1, 100000));
-  REVOLVE_READ(in.height_px, RequiredInteger(lens, "height_px", 1, 100000));
-  REVOLVE_READ(in.fx_px, RequiredNumber(lens, "fx_px", 1e-3, 1e7));
-  REVOLVE_READ(in.fy_px, RequiredNumber(lens, "fy_px", 1e-3, 1e7));
-  REVOLVE_READ(in.cx_px, RequiredNumber(lens, "cx_px", -1e6, 1e6));
-  REVOLVE_READ(in.cy_px, RequiredNumber(lens, "cy_px", -1e6, 1e6));
+  REVOLVE_ASSIGN_OR_RETURN(in.width_px, RequiredInteger(lens, "width_px", 1, 100000));
+  REVOLVE_ASSIGN_OR_RETURN(in.height_px, RequiredInteger(lens, "height_px", 1, 100000));
+  REVOLVE_ASSIGN_OR_RETURN(in.fx_px, RequiredNumber(lens, "fx_px", 1e-3, 1e7));
+  REVOLVE_ASSIGN_OR_RETURN(in.fy_px, RequiredNumber(lens, "fy_px", 1e-3, 1e7));
+  REVOLVE_ASSIGN_OR_RETURN(in.cx_px, RequiredNumber(lens, "cx_px", -1e6, 1e6));
+  REVOLVE_ASSIGN_OR_RETURN(in.cy_px, RequiredNumber(lens, "cy_px", -1e6, 1e6));
   if (!lens.Has("distortion")) {
     return std::unexpected(lens.BadValue("distortion", "missing (required; [] for none)"));
   }
-  REVOLVE_READ(c.camera.distortion, lens.Numbers("distortion", {}));
+  REVOLVE_ASSIGN_OR_RETURN(c.camera.distortion, lens.Numbers("distortion", {}));
   const std::size_t nd = c.camera.distortion.size();
   if (nd != 0 && nd != 4 && nd != 5 && nd != 8) {
     return std::unexpected(lens.BadValue(
@@ -235,15 +227,15 @@ Expected<Calibration> ParseCalibration(std::string text, std::string origin) {
       return std::unexpected(lens.BadValue("distortion", "coefficients must be finite"));
     }
   }
-  REVOLVE_READ(c.lens.rms_px, lens.Number("rms_px", 0.0, 0.0, kInf));
-  REVOLVE_READ(c.lens.views, lens.Integer("views", 0, 0, 1000000));
-  REVOLVE_READ(c.lens.coverage, lens.Number("coverage", 0.0, 0.0, 1.0));
-  REVOLVE_READ(c.lens.tilt_spread_deg, lens.Number("tilt_spread_deg", 0.0, 0.0, 180.0));
+  REVOLVE_ASSIGN_OR_RETURN(c.lens.rms_px, lens.Number("rms_px", 0.0, 0.0, kInf));
+  REVOLVE_ASSIGN_OR_RETURN(c.lens.views, lens.Integer("views", 0, 0, 1000000));
+  REVOLVE_ASSIGN_OR_RETURN(c.lens.coverage, lens.Number("coverage", 0.0, 0.0, 1.0));
+  REVOLVE_ASSIGN_OR_RETURN(c.lens.tilt_spread_deg, lens.Number("tilt_spread_deg", 0.0, 0.0, 180.0));
   if (auto unknown = lens.CheckNoUnknownKeys(); !unknown) return std::unexpected(unknown.error());
 
   if (root.Has("axis")) {
     config::Section axis = root;
-    REVOLVE_READ(axis, root.Child("axis"));
+    REVOLVE_ASSIGN_OR_RETURN(axis, root.Child("axis"));
     AxisCalibration a;
     if (!axis.Has("cam_from_table_rotation")) {
       return std::unexpected(axis.BadValue("cam_from_table_rotation", "missing (required)"));
@@ -253,8 +245,8 @@ Expected<Calibration> ParseCalibration(std::string text, std::string origin) {
     }
     std::vector<double> r;
     std::vector<double> t;
-    REVOLVE_READ(r, axis.Numbers("cam_from_table_rotation", {}, 9));
-    REVOLVE_READ(t, axis.Numbers("cam_from_table_translation_mm", {}, 3));
+    REVOLVE_ASSIGN_OR_RETURN(r, axis.Numbers("cam_from_table_rotation", {}, 9));
+    REVOLVE_ASSIGN_OR_RETURN(t, axis.Numbers("cam_from_table_translation_mm", {}, 3));
     Eigen::Matrix3d rotation;
     for (int i = 0; i < 9; ++i) rotation(i / 3, i % 3) = r[static_cast<std::size_t>(i)];
     const double orthogonality =
@@ -271,17 +263,19 @@ Expected<Calibration> ParseCalibration(std::string text, std::string origin) {
           axis.BadValue("cam_from_table_translation_mm", "values must be finite"));
     }
     std::string placement;
-    REVOLVE_READ(placement, axis.String("placement", "lying", {"lying", "standing", "tilted"}));
+    REVOLVE_ASSIGN_OR_RETURN(placement,
+                             axis.String("placement", "lying", {"lying", "standing", "tilted"}));
     a.placement = placement == "standing" ? BoardPlacement::kStanding
                   : placement == "tilted" ? BoardPlacement::kTilted
                                           : BoardPlacement::kLying;
-    REVOLVE_READ(a.stops, axis.Integer("stops", 0, 0, 1000000));
-    REVOLVE_READ(a.span_deg, axis.Number("span_deg", 0.0, 0.0, 360.0));
-    REVOLVE_READ(a.reprojection_rms_px, axis.Number("reprojection_rms_px", 0.0, 0.0, kInf));
-    REVOLVE_READ(a.corner_rms_mm, axis.Number("corner_rms_mm", 0.0, 0.0, kInf));
-    REVOLVE_READ(a.corner_max_mm, axis.Number("corner_max_mm", 0.0, 0.0, kInf));
-    REVOLVE_READ(a.angle_rms_deg, axis.Number("angle_rms_deg", 0.0, 0.0, kInf));
-    REVOLVE_READ(a.wobble_deg, axis.Number("wobble_deg", 0.0, 0.0, kInf));
+    REVOLVE_ASSIGN_OR_RETURN(a.stops, axis.Integer("stops", 0, 0, 1000000));
+    REVOLVE_ASSIGN_OR_RETURN(a.span_deg, axis.Number("span_deg", 0.0, 0.0, 360.0));
+    REVOLVE_ASSIGN_OR_RETURN(a.reprojection_rms_px,
+                             axis.Number("reprojection_rms_px", 0.0, 0.0, kInf));
+    REVOLVE_ASSIGN_OR_RETURN(a.corner_rms_mm, axis.Number("corner_rms_mm", 0.0, 0.0, kInf));
+    REVOLVE_ASSIGN_OR_RETURN(a.corner_max_mm, axis.Number("corner_max_mm", 0.0, 0.0, kInf));
+    REVOLVE_ASSIGN_OR_RETURN(a.angle_rms_deg, axis.Number("angle_rms_deg", 0.0, 0.0, kInf));
+    REVOLVE_ASSIGN_OR_RETURN(a.wobble_deg, axis.Number("wobble_deg", 0.0, 0.0, kInf));
     if (auto unknown = axis.CheckNoUnknownKeys(); !unknown) return std::unexpected(unknown.error());
     c.axis = a;
   }

@@ -99,13 +99,6 @@ class Checker {
   std::string_view origin_;
 };
 
-#define REVOLVE_CHECK(expr)                                \
-  do {                                                     \
-    if (auto checked_ = (expr); !checked_) {               \
-      return std::unexpected(std::move(checked_).error()); \
-    }                                                      \
-  } while (false)
-
 // The angle between two directions, in [0, 180].
 double AngleBetweenDeg(double a_deg, double b_deg) {
   const double d = std::fmod(std::abs(a_deg - b_deg), 360.0);
@@ -160,7 +153,8 @@ Expected<void> CheckStop(const Checker& c, const Json& stop, std::size_t i, std:
                                              *readback_deg, kMaxReadbackErrorDeg, *commanded_deg)));
   }
   for (const char* key : {"frame", "mask"}) {
-    if (auto it = stop.find(key); it != stop.end()) REVOLVE_CHECK(c.FolderFile(*it, field(key)));
+    if (auto it = stop.find(key); it != stop.end())
+      REVOLVE_RETURN_IF_ERROR(c.FolderFile(*it, field(key)));
   }
   // The quality gates' warnings: [{code, message}, ...].
   if (auto it = stop.find("quality"); it != stop.end()) {
@@ -174,7 +168,7 @@ Expected<void> CheckStop(const Checker& c, const Json& stop, std::size_t i, std:
       for (const char* key : {"code", "message"}) {
         const auto sub = warning.find(key);
         if (sub == warning.end()) return std::unexpected(c.Bad(at_w + "." + key, "missing"));
-        REVOLVE_CHECK(c.String(*sub, at_w + "." + key));
+        REVOLVE_RETURN_IF_ERROR(c.String(*sub, at_w + "." + key));
       }
     }
   }
@@ -202,17 +196,18 @@ Expected<void> CheckManifest(const nlohmann::json& manifest, std::string_view or
     step_deg = *value;
   }
   if (auto it = manifest.find("stops_done"); it != manifest.end()) {
-    REVOLVE_CHECK(c.Integer(*it, "stops_done", 0, kMaxManifestStops));
+    REVOLVE_RETURN_IF_ERROR(c.Integer(*it, "stops_done", 0, kMaxManifestStops));
   }
   if (auto it = manifest.find("version"); it != manifest.end()) {
-    REVOLVE_CHECK(c.Integer(*it, "version", 1, 1));
+    REVOLVE_RETURN_IF_ERROR(c.Integer(*it, "version", 1, 1));
   }
   for (const char* key :
        {"scan_id", "recipe", "started", "finished", "config", "turntable", "camera"}) {
-    if (auto it = manifest.find(key); it != manifest.end()) REVOLVE_CHECK(c.String(*it, key));
+    if (auto it = manifest.find(key); it != manifest.end())
+      REVOLVE_RETURN_IF_ERROR(c.String(*it, key));
   }
   if (auto it = manifest.find("state"); it != manifest.end()) {
-    REVOLVE_CHECK(c.String(*it, "state"));
+    REVOLVE_RETURN_IF_ERROR(c.String(*it, "state"));
     const std::string& state = it->get_ref<const std::string&>();
     if (std::find(std::begin(kManifestStates), std::end(kManifestStates), state) ==
         std::end(kManifestStates)) {
@@ -227,7 +222,7 @@ Expected<void> CheckManifest(const nlohmann::json& manifest, std::string_view or
     if (!it->is_object()) return std::unexpected(c.WrongType("error", "an object", *it));
     for (const char* key : {"message", "code"}) {
       if (auto sub = it->find(key); sub != it->end()) {
-        REVOLVE_CHECK(c.String(*sub, fmt::format("error.{}", key)));
+        REVOLVE_RETURN_IF_ERROR(c.String(*sub, fmt::format("error.{}", key)));
       }
     }
   }
@@ -242,7 +237,7 @@ Expected<void> CheckManifest(const nlohmann::json& manifest, std::string_view or
   }
   std::vector<std::int64_t> first_entry_of_index(static_cast<std::size_t>(planned), -1);
   for (std::size_t i = 0; i < stops->size(); ++i) {
-    REVOLVE_CHECK(CheckStop(c, (*stops)[i], i, planned, step_deg, first_entry_of_index));
+    REVOLVE_RETURN_IF_ERROR(CheckStop(c, (*stops)[i], i, planned, step_deg, first_entry_of_index));
   }
   return {};
 }

@@ -78,7 +78,12 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   nlohmann::json times;
   const Clock::time_point start = Clock::now();
 
-  // The output folder first: a read-only or unwritable --out is said before any work.
+  // The output folder first (a read-only or unwritable --out is said before any work), but not
+  // for a set that is not there: a mistyped --images leaves nothing behind.
+  if (std::error_code ec; !std::filesystem::is_directory(options.images, ec)) {
+    return MakeError(ErrorCode::kNotFound,
+                     fmt::format("{}: no such folder", options.images.string()));
+  }
   if (auto made = CreateOutputFolder(options.out / "model"); !made) {
     return std::unexpected(made.error());
   }
