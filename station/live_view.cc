@@ -10,9 +10,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/atomic_file.h"
 #include "base/log.h"
 #include "reconstruct/hull/visual_hull.h"
-#include "base/atomic_file.h"
 #include "reconstruct/io/mesh_io.h"
 
 namespace revolve::station {

@@ -1,5 +1,5 @@
-// A scan folder (layout in docs/reconstruction.md, "The scan folder"): every file is written to a temporary name,
-// fsynced and renamed, so the folder never holds a half-written file.
+// A scan folder (layout in docs/reconstruction.md, "The scan folder"): every file is written to a
+// temporary name, fsynced and renamed, so the folder never holds a half-written file.
 #pragma once
 
 #include <atomic>

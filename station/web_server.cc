@@ -11,6 +11,7 @@
 #include <deque>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -142,7 +143,6 @@ std::optional<std::string> CookieValue(const httplib::Request& req, std::string_
   }
   return std::nullopt;
 }
-
 
 }  // namespace
 
@@ -450,7 +450,7 @@ void WebServer::Impl::Configure() {
       [this](const httplib::Request& req, httplib::Response& res, std::exception_ptr ep) {
         std::string what = "unknown";
         try {
-          std::rethrow_exception(ep);
+          std::rethrow_exception(std::move(ep));
         } catch (const std::exception& e) {
           what = e.what();
         } catch (...) {

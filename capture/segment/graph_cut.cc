@@ -109,7 +109,7 @@ cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const c
 
 cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::Mat& trimap,
                            const GraphCutOptions& options) {
-  const cv::Mat fallback = (trimap == cv::GC_FGD) | (trimap == cv::GC_PR_FGD);
+  cv::Mat fallback = (trimap == cv::GC_FGD) | (trimap == cv::GC_PR_FGD);
   const int side = std::max(bgr.cols, bgr.rows);
   const double scale = options.max_side_px > 0 && side > options.max_side_px
                            ? double(options.max_side_px) / side

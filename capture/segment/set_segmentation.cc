@@ -113,7 +113,7 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   for (const cv::Point& p : points) {
     std::array<std::vector<std::uint8_t>, 3> across;
     for (const cv::Mat& frame : frames) {
-      const cv::Vec3b c = frame.at<cv::Vec3b>(p);
+      const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
       for (int k = 0; k < 3; ++k) {
         all[k].push_back(c[k]);
         across[k].push_back(c[k]);

@@ -156,6 +156,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
                                  (options.out / "masks").string(), why));
   }
   std::vector<cv::Mat> usable_masks;
+  usable_masks.reserve(usable.size());
   for (std::size_t i : usable) usable_masks.push_back(masks[i]);
 
   // Cameras.
@@ -216,6 +217,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
         {"source", "--bbox"}, {"min", Vec3Json(box_min)}, {"max", Vec3Json(box_max)}};
   } else {
     std::vector<View> usable_views;
+    usable_views.reserve(usable.size());
     for (std::size_t i : usable) usable_views.push_back(views[i]);
     Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views);
     if (!volume) {

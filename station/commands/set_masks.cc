@@ -18,7 +18,7 @@ namespace revolve::station {
 namespace {
 
 Expected<void> WritePng(const std::filesystem::path& path, const cv::Mat& image,
-                        std::vector<int> params = {}) {
+                        const std::vector<int>& params = {}) {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png, params)) {
     return MakeError(ErrorCode::kInternal,

@@ -142,9 +142,9 @@ class StationCommandsImpl final : public StationCommands {
       err << "revolve reconstruct: give the scan folder (SCAN_DIR) or --images DIR\n";
       return kExitUsage;
     }
-    for (const char* option : {"--pattern", "--step-deg", "--cameras", "--bbox", "--threshold",
-                               "--segment", "--config", "--row-step", "--both-sides",
-                               "--max-image-mp"}) {
+    for (const char* option :
+         {"--pattern", "--step-deg", "--cameras", "--bbox", "--threshold", "--segment", "--config",
+          "--row-step", "--both-sides", "--max-image-mp"}) {
       if (reconstruct_->count(option) > 0) {
         err << "revolve reconstruct: " << option << " applies to --images only\n";
         return kExitUsage;

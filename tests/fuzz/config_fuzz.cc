@@ -38,8 +38,8 @@ void Walk(const Section& section, const toml::table& table, int depth) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  auto document = revolve::config::Parse(
-      std::string(reinterpret_cast<const char*>(data), size), "fuzz.toml");
+  auto document =
+      revolve::config::Parse(std::string(reinterpret_cast<const char*>(data), size), "fuzz.toml");
   if (!document) return 0;
   Walk(Section::Root(*document), document->root, 0);
   return 0;

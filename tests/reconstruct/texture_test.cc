@@ -17,8 +17,8 @@
 
 #include "capture/synthetic/render.h"
 #include "capture/synthetic/scene.h"
-#include "reconstruct/io/writer_support.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/reconstructor.h"
 #include "tests/reconstruct/sphere_scene.h"

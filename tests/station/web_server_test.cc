@@ -387,8 +387,9 @@ TEST_F(WebServerTest, ReconnectWithLastEventIdMissesNothing) {
 
   // The same through ?last_event_id= (for a client that cannot set the header): the replay
   // comes at once, from the event after the one named.
-  SseReader third(port_, {}, [](const Sse& e) { return e.event == "scan"; },
-                  fmt::format("/api/events?last_event_id={}", cut));
+  SseReader third(
+      port_, {}, [](const Sse& e) { return e.event == "scan"; },
+      fmt::format("/api/events?last_event_id={}", cut));
   ASSERT_TRUE(third.WaitDone(10s));
   ASSERT_FALSE(third.Events().empty());
   EXPECT_EQ(third.Events().front().event, "scan");

@@ -576,6 +576,7 @@ Expected<std::vector<RenderedStep>> RenderCommand(const DriveProfile& profile,
 
 std::vector<FieldRead> PlanFieldReads(const DriveProfile& profile) {
   std::vector<const Field*> sorted;
+  sorted.reserve(profile.fields.size());
   for (const auto& [name, field] : profile.fields) sorted.push_back(&field);
   std::sort(sorted.begin(), sorted.end(), [](const Field* a, const Field* b) {
     return std::pair(a->table, a->address) < std::pair(b->table, b->address);
