@@ -8,14 +8,13 @@
 #include <fmt/format.h>
 
 #include "reconstruct/cameras/views.h"
+#include "station/report_json.h"
 
 namespace revolve::station {
 namespace {
 
 namespace cal = revolve::calibrate;
 namespace rc = revolve::reconstruct;
-
-nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json AxisJson(const cal::SilhouetteAxis& axis, int width_px) {
   return {{"column_px", axis.column_px},

@@ -16,6 +16,7 @@
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
+#include "station/report_json.h"
 #include "station/scan_geometry.h"
 #include "station/timing.h"
 
@@ -51,8 +52,6 @@ bool MayPass(ErrorCode code) {
   return code == ErrorCode::kTimeout || code == ErrorCode::kNoDevice ||
          code == ErrorCode::kLinkDown || code == ErrorCode::kIo || code == ErrorCode::kProtocol;
 }
-
-nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 // Points sampled on the model's surface for the distance to the truth.
 constexpr int kSurfaceSamples = 20000;
@@ -573,16 +572,7 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   report.update(geometry->ReportJson());
   // Lengths in the model's unit, named by it: _mm with a metric geometry, _px in thesis mode.
   const std::string unit = geometry->metric() ? "mm" : "px";
-  report["model"] = {{"files", result.model_files},
-                     {"vertices", stats.vertex_count},
-                     {"triangles", stats.triangle_count},
-                     {"volume_" + unit + "3", stats.volume_mm3},
-                     {"surface_area_" + unit + "2", stats.area_mm2},
-                     {"bbox_min_" + unit, Vec3Json(stats.bbox_min_mm)},
-                     {"bbox_max_" + unit, Vec3Json(stats.bbox_max_mm)},
-                     {"dimensions_" + unit, Vec3Json(stats.bbox_max_mm - stats.bbox_min_mm)},
-                     {"watertight", stats.closed},
-                     {"consistently_oriented", stats.oriented}};
+  report["model"] = ModelReportJson(result.model_files, stats, unit);
   // The quality gates' warnings of the kept stops (the manifest has them per stop).
   report["quality_warnings"] = nlohmann::json::array();
   for (const nlohmann::json& entry : manifest_["stops"]) {

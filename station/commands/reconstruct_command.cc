@@ -11,6 +11,7 @@
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/commands/scan_command.h"
+#include "station/report_json.h"
 #include "station/saved_stops.h"
 #include "station/scan_folder.h"
 #include "station/scan_geometry.h"
@@ -18,8 +19,6 @@
 
 namespace revolve::station {
 namespace {
-
-nlohmann::json Vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 Expected<void> WriteReport(const std::filesystem::path& file, const std::filesystem::path& dir,
                            const nlohmann::json& manifest,
@@ -37,18 +36,10 @@ Expected<void> WriteReport(const std::filesystem::path& file, const std::filesys
                            {"stops_planned", manifest.value("stops_planned", 0)}};
   report.update(geometry.ReportJson());
   const std::string unit = geometry.metric() ? "mm" : "px";
-  nlohmann::json names = nlohmann::json::array();
+  std::vector<std::string> names;
+  names.reserve(files.size());
   for (const auto& f : files) names.push_back(f.filename().string());
-  report["model"] = {{"files", names},
-                     {"vertices", stats.vertex_count},
-                     {"triangles", stats.triangle_count},
-                     {"volume_" + unit + "3", stats.volume_mm3},
-                     {"surface_area_" + unit + "2", stats.area_mm2},
-                     {"bbox_min_" + unit, Vec3(stats.bbox_min_mm)},
-                     {"bbox_max_" + unit, Vec3(stats.bbox_max_mm)},
-                     {"dimensions_" + unit, Vec3(stats.bbox_max_mm - stats.bbox_min_mm)},
-                     {"watertight", stats.closed},
-                     {"consistently_oriented", stats.oriented}};
+  report["model"] = ModelReportJson(names, stats, unit);
   const std::string text = report.dump(2) + "\n";
   return WriteFileAtomically(file, std::string_view(text));
 }

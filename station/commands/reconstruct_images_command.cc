@@ -20,6 +20,7 @@
 #include "reconstruct/reconstructor.h"
 #include "station/commands/scan_command.h"
 #include "station/commands/set_masks.h"
+#include "station/report_json.h"
 #include "station/timing.h"
 
 namespace revolve::station {
@@ -30,8 +31,6 @@ namespace rc = revolve::reconstruct;
 
 // A view whose mask reprojects below this IoU against the model is flagged in report.json.
 constexpr double kMinAgreeingIoU = 0.9;
-
-nlohmann::json Vec3Json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 // An option out of range: the message, or empty when the options are usable.
 std::string CheckOptions(const ReconstructImagesOptions& options) {
