@@ -9,7 +9,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 #include <immintrin.h>
 #define REVOLVE_X86_AVX2 1
 #endif

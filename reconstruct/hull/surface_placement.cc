@@ -12,16 +12,21 @@
 #include <numeric>
 
 #include <fmt/format.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <opencv2/imgproc.hpp>
 
 #include "reconstruct/hull/hull_internal.h"
 #include "reconstruct/hull/marching_cubes.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 
 using namespace hull_internal;  // NOLINT(google-build-using-namespace): this library's own parts
 
 namespace {
+
+// Blocks of 16 voxels per task of the placement (a few hundred edges each).
+constexpr std::size_t kBlocksPerTask = 4;
 
 // How far (px, along u and along v) a segment of at most one voxel along grid axis `axis` can
 // move in a view's image, for segments inside the box whose 8 corners project to `projected`
@@ -272,7 +277,7 @@ inline int NearestPixel(double x) {
 // its end pixel. A loop of its own, apart from the tests that depend on it, so that the
 // divisions of successive points overlap; the AVX2 build (where the processor has it) rounds
 // with one instruction.
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 [[gnu::target_clones("avx2", "default")]]
 #endif
 void NearestPixels(const double* __restrict hx, const double* __restrict hy,
@@ -296,6 +301,33 @@ void NearestPixels(const double* __restrict hx, const double* __restrict hy,
 // silhouette; the rest are walked.
 class VisualHull::EdgePlacer {
  public:
+  // Points as structure of arrays (a sample's or a brick's centre).
+  struct Points {
+    std::vector<double> x, y, z;
+    void Add(const Eigen::Vector3d& c) {
+      x.push_back(c.x());
+      y.push_back(c.y());
+      z.push_back(c.z());
+    }
+  };
+  // Per block and view, one per thread: the bricks' projections, then the samples of the
+  // bricks the view may act on (gathered), their projections, and the samples to walk.
+  struct Scratch {
+    std::vector<double> brick_hx_, brick_hy_, brick_w_, brick_u_, brick_v_;
+    Points gathered_;
+    std::vector<std::uint32_t> gathered_sample_;
+    std::vector<double> sample_hx_, sample_hy_, sample_w_, sample_u_, sample_v_;
+    std::vector<std::uint32_t> walk_;
+    // Rectangles of pixels to test together (AllOnEach): the samples', then the items'.
+    std::vector<int> rect_u0_, rect_v0_, rect_u1_, rect_v1_;
+    std::vector<std::uint8_t> rect_on_;
+    // The items of the samples to walk: item, sample (gathered), the part of the segment that
+    // can matter, and its end (P * [X; 1]; then the nearest pixel).
+    std::vector<std::uint32_t> walk_item_, walk_sample_;
+    std::vector<double> walk_t_, end_x_, end_y_, end_w_;
+    std::vector<int> end_u_, end_v_;
+  };
+
   EdgePlacer(const VisualHull& hull, const std::vector<GridEdge>& edges,
              std::optional<double> clip_below_z_mm)
       : hull_(hull),
@@ -306,8 +338,11 @@ class VisualHull::EdgePlacer {
     AllocateScratch();
   }
 
-  // Each edge's crossing moved to where `view` cuts it first, when that is sooner.
-  void PlaceInView(const ViewData& view, bool cull_views) {
+  // Each edge's crossing moved to where `view` cuts it first, when that is sooner. The blocks
+  // are spread over the cores: each writes only its own items' and samples' t, and goes through
+  // the views in the same order whatever the threads, so the result is the same.
+  void PlaceInView(const ViewData& view, bool cull_views,
+                   tbb::enumerable_thread_specific<Scratch>& scratch) {
     const PackedMask packed(view.roi, view.packed_words, view.packed.data());
     // P * d for the six steps (axis, sign), as FirstExit computes it.
     const Matrix34d& p = view.pixel_from_object;
@@ -321,14 +356,18 @@ class VisualHull::EdgePlacer {
         }
       }
     }
-    for (const Block& block : blocks_) {
-      Reach reach;
-      if (cull_views && !ReachOfBlock(view, packed, block, &reach)) continue;
-      const std::size_t count = GatherSamples(view, packed, block, reach, cull_views);
-      const std::size_t walks = SamplesToWalk(view, packed, reach, count);
-      const std::size_t m = ItemsToWalk(view, packed, step_h, walks);
-      WalkItems(view, step_h, m);
-    }
+    ParallelChunks(0, blocks_.size(), kBlocksPerTask, [&](std::size_t lo, std::size_t hi) {
+      Scratch& sc = scratch.local();
+      for (std::size_t b = lo; b < hi; ++b) {
+        const Block& block = blocks_[b];
+        Reach reach;
+        if (cull_views && !ReachOfBlock(view, packed, block, &reach)) continue;
+        const std::size_t count = GatherSamples(sc, view, packed, block, reach, cull_views);
+        const std::size_t walks = SamplesToWalk(sc, view, packed, reach, count);
+        const std::size_t m = ItemsToWalk(sc, view, packed, step_h, walks);
+        WalkItems(sc, view, step_h, m);
+      }
+    });
   }
 
   // Per edge (in the order of `edges`): the t of its crossing. No view cuts the segment: its end
@@ -355,15 +394,6 @@ class VisualHull::EdgePlacer {
   struct Block {
     std::size_t begin, end;  // bricks
     Eigen::Vector3d corners[8];
-  };
-  // Points as structure of arrays (a sample's or a brick's centre).
-  struct Points {
-    std::vector<double> x, y, z;
-    void Add(const Eigen::Vector3d& c) {
-      x.push_back(c.x());
-      y.push_back(c.y());
-      z.push_back(c.z());
-    }
   };
   // How far the segments of a block can move in a view's image (px): per set of axes (bit a:
   // axis a) for a sample's segments of one voxel, and per voxel along each axis for a brick's.
@@ -541,37 +571,18 @@ class VisualHull::EdgePlacer {
     }
   }
 
-  // The per-view scratch, sized for the largest block; each item's t so far (t_max + 1: no cut
-  // yet) and each sample's longest part of its edges that can still hold a crossing (voxels).
+  // The sizes of the per-view scratch (the largest block's); each item's t so far (t_max + 1:
+  // no cut yet) and each sample's longest part of its edges that can still hold a crossing
+  // (voxels).
   void AllocateScratch() {
-    std::size_t largest_block = 0;  // in samples
-    std::size_t most_bricks = 0;
-    std::size_t most_items = 0;
     for (const Block& block : blocks_) {
       const std::size_t first = brick_start_[block.begin];
       const std::size_t last = brick_start_[block.end];
-      largest_block = std::max(largest_block, last - first);
-      most_bricks = std::max(most_bricks, block.end - block.begin);
-      most_items = std::max<std::size_t>(
-          most_items, samples_[last - 1].first + samples_[last - 1].count - samples_[first].first);
+      largest_block_ = std::max(largest_block_, last - first);
+      most_bricks_ = std::max(most_bricks_, block.end - block.begin);
+      most_items_ = std::max<std::size_t>(
+          most_items_, samples_[last - 1].first + samples_[last - 1].count - samples_[first].first);
     }
-    for (std::vector<double>* a : {&brick_hx_, &brick_hy_, &brick_w_, &brick_u_, &brick_v_}) {
-      a->resize(most_bricks);
-    }
-    for (std::vector<double>* a : {&gathered_.x, &gathered_.y, &gathered_.z, &sample_hx_,
-                                   &sample_hy_, &sample_w_, &sample_u_, &sample_v_}) {
-      a->resize(largest_block);
-    }
-    gathered_sample_.resize(largest_block);
-    walk_.resize(largest_block);
-    const std::size_t most_rects = std::max(largest_block, most_items);
-    for (std::vector<int>* a : {&rect_u0_, &rect_v0_, &rect_u1_, &rect_v1_}) a->resize(most_rects);
-    rect_on_.resize(most_rects);
-    walk_item_.resize(most_items);
-    walk_sample_.resize(most_items);
-    for (std::vector<double>* a : {&walk_t_, &end_x_, &end_y_, &end_w_}) a->resize(most_items);
-    end_u_.resize(most_items);
-    end_v_.resize(most_items);
     t_item_.resize(n_);
     for (std::size_t k = 0; k < n_; ++k) t_item_[k] = items_[k].t_max + 1.0;
     sample_t_.assign(samples_.size(), 0.0);
@@ -582,6 +593,36 @@ class VisualHull::EdgePlacer {
     }
   }
 
+ public:
+  // A thread's scratch, sized for the largest block.
+  Scratch MakeScratch() const {
+    Scratch s;
+    for (std::vector<double>* a :
+         {&s.brick_hx_, &s.brick_hy_, &s.brick_w_, &s.brick_u_, &s.brick_v_}) {
+      a->resize(most_bricks_);
+    }
+    for (std::vector<double>* a : {&s.gathered_.x, &s.gathered_.y, &s.gathered_.z, &s.sample_hx_,
+                                   &s.sample_hy_, &s.sample_w_, &s.sample_u_, &s.sample_v_}) {
+      a->resize(largest_block_);
+    }
+    s.gathered_sample_.resize(largest_block_);
+    s.walk_.resize(largest_block_);
+    const std::size_t most_rects = std::max(largest_block_, most_items_);
+    for (std::vector<int>* a : {&s.rect_u0_, &s.rect_v0_, &s.rect_u1_, &s.rect_v1_}) {
+      a->resize(most_rects);
+    }
+    s.rect_on_.resize(most_rects);
+    s.walk_item_.resize(most_items_);
+    s.walk_sample_.resize(most_items_);
+    for (std::vector<double>* a : {&s.walk_t_, &s.end_x_, &s.end_y_, &s.end_w_}) {
+      a->resize(most_items_);
+    }
+    s.end_u_.resize(most_items_);
+    s.end_v_.resize(most_items_);
+    return s;
+  }
+
+ private:
   // With culling: false when `view` cannot act on the block (its box is all on the silhouette or
   // unseen), else *reach for it.
   bool ReachOfBlock(const ViewData& view, const PackedMask& packed, const Block& block,
@@ -624,14 +665,14 @@ class VisualHull::EdgePlacer {
 
   // The samples of the block's bricks that `view` may act on (with culling, a brick whose box
   // is all on the silhouette is left out), gathered with their projections; returns how many.
-  std::size_t GatherSamples(const ViewData& view, const PackedMask& packed, const Block& block,
-                            const Reach& reach, bool cull_views) {
+  std::size_t GatherSamples(Scratch& sc, const ViewData& view, const PackedMask& packed,
+                            const Block& block, const Reach& reach, bool cull_views) {
     const Matrix34d& p = view.pixel_from_object;
     const StepBound& bound = reach.bound;
     const std::size_t bricks = block.end - block.begin;
     ProjectPoints(p, &brick_centre_.x[block.begin], &brick_centre_.y[block.begin],
-                  &brick_centre_.z[block.begin], bricks, brick_hx_.data(), brick_hy_.data(),
-                  brick_w_.data(), brick_u_.data(), brick_v_.data());
+                  &brick_centre_.z[block.begin], bricks, sc.brick_hx_.data(), sc.brick_hy_.data(),
+                  sc.brick_w_.data(), sc.brick_u_.data(), sc.brick_v_.data());
     std::size_t count = 0;
     for (std::size_t b = 0; b < bricks; ++b) {
       // From the middle to a corner of the box of the brick's segments: three legs along the
@@ -642,123 +683,125 @@ class VisualHull::EdgePlacer {
           half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
       const double brick_reach_v =
           half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
-      if (cull_views && AllOnAround(view.mask01, packed, brick_w_[b], brick_u_[b], brick_v_[b],
-                                    brick_reach_u, brick_reach_v)) {
+      if (cull_views && AllOnAround(view.mask01, packed, sc.brick_w_[b], sc.brick_u_[b],
+                                    sc.brick_v_[b], brick_reach_u, brick_reach_v)) {
         continue;
       }
       for (std::size_t s = brick_start_[block.begin + b]; s < brick_start_[block.begin + b + 1];
            ++s) {
-        gathered_.x[count] = sample_centre_.x[s];
-        gathered_.y[count] = sample_centre_.y[s];
-        gathered_.z[count] = sample_centre_.z[s];
-        gathered_sample_[count++] = static_cast<std::uint32_t>(s);
+        sc.gathered_.x[count] = sample_centre_.x[s];
+        sc.gathered_.y[count] = sample_centre_.y[s];
+        sc.gathered_.z[count] = sample_centre_.z[s];
+        sc.gathered_sample_[count++] = static_cast<std::uint32_t>(s);
       }
     }
-    ProjectPoints(p, gathered_.x.data(), gathered_.y.data(), gathered_.z.data(), count,
-                  sample_hx_.data(), sample_hy_.data(), sample_w_.data(), sample_u_.data(),
-                  sample_v_.data());
+    ProjectPoints(p, sc.gathered_.x.data(), sc.gathered_.y.data(), sc.gathered_.z.data(), count,
+                  sc.sample_hx_.data(), sc.sample_hy_.data(), sc.sample_w_.data(),
+                  sc.sample_u_.data(), sc.sample_v_.data());
     return count;
   }
 
-  // walk_: the gathered samples (of `count`) whose segments may leave the silhouette (those
+  // sc.walk_: the gathered samples (of `count`) whose segments may leave the silhouette (those
   // whose segments all stay on it are left out, with no branch on the outcome: it is hard to
   // predict); returns how many.
-  std::size_t SamplesToWalk(const ViewData& view, const PackedMask& packed, const Reach& reach,
-                            std::size_t count) {
+  std::size_t SamplesToWalk(Scratch& sc, const ViewData& view, const PackedMask& packed,
+                            const Reach& reach, std::size_t count) {
     const cv::Mat& mask = view.mask01;
     // The rectangles are made first (AllOnAround's; one outside the silhouette's where that is
     // false before any pixel is read), then tested together.
     for (std::size_t g = 0; g < count; ++g) {
-      const std::uint32_t s = gathered_sample_[g];
+      const std::uint32_t s = sc.gathered_sample_[g];
       const std::uint8_t axes = samples_[s].axes;
       // The segments are as long as the part of them that can still hold the crossing.
       const double t = sample_t_[s];
       const double around_u = reach.u[axes] * t + 1e-6, around_v = reach.v[axes] * t + 1e-6;
-      const double u_lo = sample_u_[g] + 0.5 - around_u, u_hi = sample_u_[g] + 0.5 + around_u;
-      const double v_lo = sample_v_[g] + 0.5 - around_v, v_hi = sample_v_[g] + 0.5 + around_v;
-      const bool in_image =
-          sample_w_[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows;
-      rect_u0_[g] = static_cast<int>(in_image ? u_lo : -1.0);
-      rect_v0_[g] = static_cast<int>(in_image ? v_lo : -1.0);
-      rect_u1_[g] = static_cast<int>(in_image ? u_hi : -1.0);
-      rect_v1_[g] = static_cast<int>(in_image ? v_hi : -1.0);
+      const double u_lo = sc.sample_u_[g] + 0.5 - around_u, u_hi = sc.sample_u_[g] + 0.5 + around_u;
+      const double v_lo = sc.sample_v_[g] + 0.5 - around_v, v_hi = sc.sample_v_[g] + 0.5 + around_v;
+      const bool in_image = sc.sample_w_[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 &&
+                            u_hi < mask.cols && v_hi < mask.rows;
+      sc.rect_u0_[g] = static_cast<int>(in_image ? u_lo : -1.0);
+      sc.rect_v0_[g] = static_cast<int>(in_image ? v_lo : -1.0);
+      sc.rect_u1_[g] = static_cast<int>(in_image ? u_hi : -1.0);
+      sc.rect_v1_[g] = static_cast<int>(in_image ? v_hi : -1.0);
     }
-    packed.AllOnEach(rect_u0_.data(), rect_v0_.data(), rect_u1_.data(), rect_v1_.data(), count,
-                     rect_on_.data());
+    packed.AllOnEach(sc.rect_u0_.data(), sc.rect_v0_.data(), sc.rect_u1_.data(), sc.rect_v1_.data(),
+                     count, sc.rect_on_.data());
     std::size_t walks = 0;
     for (std::size_t g = 0; g < count; ++g) {
-      walk_[walks] = static_cast<std::uint32_t>(g);
-      walks += rect_on_[g] != 0 ? 0 : 1;
+      sc.walk_[walks] = static_cast<std::uint32_t>(g);
+      walks += sc.rect_on_[g] != 0 ? 0 : 1;
     }
     return walks;
   }
 
-  // The items of the `walks` samples to walk (walk_item_, walk_sample_), with the end of the
+  // The items of the `walks` samples to walk (sc.walk_item_, sc.walk_sample_), with the end of the
   // part of their segment that can matter: only the part before the nearest exit found so far
   // (the walk of the shorter segment visits a prefix of the same cells, the same result where it
   // matters, and its end rectangle is smaller, so it more often ends at once); then FirstExit's
-  // first test on them (rect_on_). Returns how many.
-  std::size_t ItemsToWalk(const ViewData& view, const PackedMask& packed,
+  // first test on them (sc.rect_on_). Returns how many.
+  std::size_t ItemsToWalk(Scratch& sc, const ViewData& view, const PackedMask& packed,
                           const double (&step_h)[3][2][3], std::size_t walks) {
     const cv::Mat& mask = view.mask01;
     std::size_t m = 0;
     for (std::size_t q = 0; q < walks; ++q) {
-      const std::size_t g = walk_[q];
-      const Sample& sample = samples_[gathered_sample_[g]];
+      const std::size_t g = sc.walk_[q];
+      const Sample& sample = samples_[sc.gathered_sample_[g]];
       double longest = 0.0;
       for (std::size_t k = sample.first; k < sample.first + sample.count; ++k) {
         const Item& item = items_[k];
         const double t_max = std::min(item.t_max, t_item_[k]);
         longest = std::max(longest, t_max);
         const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
-        walk_item_[m] = static_cast<std::uint32_t>(k);
-        walk_sample_[m] = static_cast<std::uint32_t>(g);
-        walk_t_[m] = t_max;
-        end_x_[m] = sample_hx_[g] + t_max * hd[0];
-        end_y_[m] = sample_hy_[g] + t_max * hd[1];
-        end_w_[m] = sample_w_[g] + t_max * hd[2];
+        sc.walk_item_[m] = static_cast<std::uint32_t>(k);
+        sc.walk_sample_[m] = static_cast<std::uint32_t>(g);
+        sc.walk_t_[m] = t_max;
+        sc.end_x_[m] = sc.sample_hx_[g] + t_max * hd[0];
+        sc.end_y_[m] = sc.sample_hy_[g] + t_max * hd[1];
+        sc.end_w_[m] = sc.sample_w_[g] + t_max * hd[2];
         ++m;
       }
-      sample_t_[gathered_sample_[g]] = longest;
+      sample_t_[sc.gathered_sample_[g]] = longest;
     }
-    NearestPixels(end_x_.data(), end_y_.data(), end_w_.data(), m, end_u_.data(), end_v_.data());
+    NearestPixels(sc.end_x_.data(), sc.end_y_.data(), sc.end_w_.data(), m, sc.end_u_.data(),
+                  sc.end_v_.data());
     // FirstExit's first test, on the same values, for the segments in front of the camera:
     // the rectangle of the end pixels, clamped to the image (the others' is not used).
     for (std::size_t r = 0; r < m; ++r) {
-      const std::size_t g = walk_sample_[r];
-      const int iu = NearestPixel(sample_u_[g]);
-      const int iv = NearestPixel(sample_v_[g]);
-      rect_u0_[r] = std::max(std::min(iu, end_u_[r]), 0);
-      rect_u1_[r] = std::min(std::max(iu, end_u_[r]), mask.cols - 1);
-      rect_v0_[r] = std::max(std::min(iv, end_v_[r]), 0);
-      rect_v1_[r] = std::min(std::max(iv, end_v_[r]), mask.rows - 1);
+      const std::size_t g = sc.walk_sample_[r];
+      const int iu = NearestPixel(sc.sample_u_[g]);
+      const int iv = NearestPixel(sc.sample_v_[g]);
+      sc.rect_u0_[r] = std::max(std::min(iu, sc.end_u_[r]), 0);
+      sc.rect_u1_[r] = std::min(std::max(iu, sc.end_u_[r]), mask.cols - 1);
+      sc.rect_v0_[r] = std::max(std::min(iv, sc.end_v_[r]), 0);
+      sc.rect_v1_[r] = std::min(std::max(iv, sc.end_v_[r]), mask.rows - 1);
     }
-    packed.AllOnEach(rect_u0_.data(), rect_v0_.data(), rect_u1_.data(), rect_v1_.data(), m,
-                     rect_on_.data());
+    packed.AllOnEach(sc.rect_u0_.data(), sc.rect_v0_.data(), sc.rect_u1_.data(), sc.rect_v1_.data(),
+                     m, sc.rect_on_.data());
     return m;
   }
 
   // The m items to walk: each item's t lowered to where its segment first leaves `view`'s
   // silhouette (WalkCells in front of the camera unless the end pixels' rectangle is all on
   // it, FirstExit otherwise).
-  void WalkItems(const ViewData& view, const double (&step_h)[3][2][3], std::size_t m) {
+  void WalkItems(Scratch& sc, const ViewData& view, const double (&step_h)[3][2][3],
+                 std::size_t m) {
     for (std::size_t r = 0; r < m; ++r) {
-      const std::size_t k = walk_item_[r];
-      const std::size_t g = walk_sample_[r];
+      const std::size_t k = sc.walk_item_[r];
+      const std::size_t g = sc.walk_sample_[r];
       const Item& item = items_[k];
-      const double t_max = walk_t_[r];
-      const double hx = sample_hx_[g];
-      const double hy = sample_hy_[g];
-      const double hw = sample_w_[g];
+      const double t_max = sc.walk_t_[r];
+      const double hx = sc.sample_hx_[g];
+      const double hy = sc.sample_hy_[g];
+      const double hw = sc.sample_w_[g];
       const double* hd = step_h[item.axis][item.sign > 0 ? 1 : 0];
-      if (hw > 0.0 && end_w_[r] > 0.0) {
-        if (rect_on_[r] != 0) continue;
-        t_item_[k] =
-            std::min(t_item_[k], WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sample_u_[g]),
-                                           NearestPixel(sample_v_[g]), end_u_[r], end_v_[r]));
+      if (hw > 0.0 && sc.end_w_[r] > 0.0) {
+        if (sc.rect_on_[r] != 0) continue;
+        t_item_[k] = std::min(t_item_[k],
+                              WalkCells(view, hx, hy, hw, hd, t_max, NearestPixel(sc.sample_u_[g]),
+                                        NearestPixel(sc.sample_v_[g]), sc.end_u_[r], sc.end_v_[r]));
         continue;
       }
-      const Eigen::Vector3d a(gathered_.x[g], gathered_.y[g], gathered_.z[g]);
+      const Eigen::Vector3d a(sc.gathered_.x[g], sc.gathered_.y[g], sc.gathered_.z[g]);
       Eigen::Vector3d d = Eigen::Vector3d::Zero();
       d[item.axis] = item.sign * hull_.grid_.voxel_mm;
       t_item_[k] = std::min(t_item_[k], FirstExit(view, a, d, t_max));
@@ -778,21 +821,8 @@ class VisualHull::EdgePlacer {
   // Per brick: the box of its samples' segments (grid coordinates, voxels), and its half extents.
   std::vector<Eigen::Vector3d> brick_lo_, brick_hi_, brick_half_;
   std::vector<Block> blocks_;
-  // Per block and view: the bricks' projections, then the samples of the bricks the view may
-  // act on (gathered), their projections, and the samples to walk.
-  std::vector<double> brick_hx_, brick_hy_, brick_w_, brick_u_, brick_v_;
-  Points gathered_;
-  std::vector<std::uint32_t> gathered_sample_;
-  std::vector<double> sample_hx_, sample_hy_, sample_w_, sample_u_, sample_v_;
-  std::vector<std::uint32_t> walk_;
-  // Rectangles of pixels to test together (AllOnEach): the samples', then the items'.
-  std::vector<int> rect_u0_, rect_v0_, rect_u1_, rect_v1_;
-  std::vector<std::uint8_t> rect_on_;
-  // The items of the samples to walk: item, sample (gathered), the part of the segment that
-  // can matter, and its end (P * [X; 1]; then the nearest pixel).
-  std::vector<std::uint32_t> walk_item_, walk_sample_;
-  std::vector<double> walk_t_, end_x_, end_y_, end_w_;
-  std::vector<int> end_u_, end_v_;
+  // The scratch's sizes (AllocateScratch).
+  std::size_t largest_block_ = 0, most_bricks_ = 0, most_items_ = 0;
   std::vector<double> t_item_;
   std::vector<double> sample_t_;
 };
@@ -801,7 +831,9 @@ std::vector<double> VisualHull::PlaceOnEdges(const std::vector<GridEdge>& edges,
                                              std::optional<double> clip_below_z_mm,
                                              bool cull_views) const {
   EdgePlacer placer(*this, edges, clip_below_z_mm);
-  for (const ViewData& view : views_) placer.PlaceInView(view, cull_views);
+  tbb::enumerable_thread_specific<EdgePlacer::Scratch> scratch(
+      [&placer] { return placer.MakeScratch(); });
+  for (const ViewData& view : views_) placer.PlaceInView(view, cull_views, scratch);
   return placer.Result();
 }
 

@@ -314,7 +314,7 @@ namespace {
 // order as the point test, so the same values (no contraction: this file is built with
 // -ffp-contract=off). Built for AVX2 too where the processor has it (the same results, twice as
 // wide).
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 [[gnu::target_clones("avx2", "default")]]
 #endif
 std::uint64_t

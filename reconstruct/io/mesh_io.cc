@@ -16,6 +16,7 @@
 
 #include "reconstruct/io/writer_support.h"
 #include "reconstruct/meridian/meridian_vrml.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -368,6 +369,38 @@ bool IsModelFormat(std::string_view format) {
          std::end(kModelFormats);
 }
 
+namespace {
+
+// One format's file(s) at `path` (the texture's PNG in `png` for obj and glb, or null): the
+// files written, in the order WriteModel lists them.
+Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path& path,
+                                               const std::string& format, const std::string* png) {
+  Expected<void> result;
+  if (format == "ply") {
+    result = WritePly(mesh, path);
+  } else if (format == "wrl" && mesh.HasViewTexture()) {
+    // The view-dependent texture's images (<basename>_texNN.jpg), then the .wrl.
+    return WriteTexturedVrml(mesh, path, 0.001);
+  } else if (format == "wrl") {
+    result = WriteVrml(mesh, path);
+  } else if (format == "stl") {
+    result = WriteStl(mesh, path);
+  } else if (format == "glb") {
+    result = internal::WriteGlb(mesh, path, png);
+  } else {
+    result = internal::WriteObj(mesh, path, png);
+  }
+  if (!result) return std::unexpected(result.error());
+  std::vector<fs::path> written = {path};
+  if (format == "obj") {
+    written.push_back(fs::path(path).replace_extension(".mtl"));
+    if (mesh.HasTexture()) written.push_back(fs::path(path).replace_extension(".png"));
+  }
+  return written;
+}
+
+}  // namespace
+
 Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir,
                                            std::string_view basename,
                                            const std::vector<std::string>& formats) {
@@ -378,53 +411,43 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
           fmt::format("unknown model format \"{}\" (expected ply, obj, stl, glb or wrl)", format));
     }
   }
+  // Each file once, in the order asked for.
+  std::vector<std::string> unique;
+  for (const std::string& format : formats) {
+    if (std::find(unique.begin(), unique.end(), format) == unique.end()) unique.push_back(format);
+  }
   // The texture is encoded once for every format that embeds or references it.
   std::string png;
   const bool needs_png = mesh.HasTexture() &&
-                         std::any_of(formats.begin(), formats.end(),
+                         std::any_of(unique.begin(), unique.end(),
                                      [](const std::string& f) { return f == "obj" || f == "glb"; });
-  if (needs_png) {
-    Expected<std::string> encoded = internal::EncodePng(mesh.texture);
-    if (!encoded) {
-      return std::unexpected(encoded.error());
+  // The files on all cores: those without the texture while it is encoded, then the others.
+  // Each file's list (and its error) is kept in its slot, so the result is in the order asked.
+  std::vector<Expected<std::vector<fs::path>>> files(unique.size());
+  const auto write = [&](std::size_t i) {
+    files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
+                              needs_png ? &png : nullptr);
+  };
+  const auto uses_png = [&](std::size_t i) {
+    return needs_png && (unique[i] == "obj" || unique[i] == "glb");
+  };
+  Expected<std::string> encoded = std::string();
+  ParallelFor(0, unique.size() + 1, [&](std::size_t i) {
+    if (i == unique.size()) {
+      if (needs_png) encoded = internal::EncodePng(mesh.texture);
+    } else if (!uses_png(i)) {
+      write(i);
     }
-    png = std::move(*encoded);
-  }
+  });
+  if (!encoded) return std::unexpected(encoded.error());
+  png = std::move(*encoded);
+  ParallelFor(0, unique.size(), [&](std::size_t i) {
+    if (uses_png(i)) write(i);
+  });
   std::vector<fs::path> written;
-  for (const std::string& format : formats) {
-    const fs::path path = dir / fmt::format("{}.{}", basename, format);
-    if (std::find(written.begin(), written.end(), path) != written.end()) {
-      continue;
-    }
-    Expected<void> result;
-    if (format == "ply") {
-      result = WritePly(mesh, path);
-    } else if (format == "wrl" && mesh.HasViewTexture()) {
-      // The view-dependent texture's images (<basename>_texNN.jpg), then the .wrl.
-      Expected<std::vector<fs::path>> files = WriteTexturedVrml(mesh, path, 0.001);
-      if (!files) {
-        return std::unexpected(files.error());
-      }
-      written.insert(written.end(), files->begin(), files->end() - 1);
-    } else if (format == "wrl") {
-      result = WriteVrml(mesh, path);
-    } else if (format == "stl") {
-      result = WriteStl(mesh, path);
-    } else if (format == "glb") {
-      result = internal::WriteGlb(mesh, path, needs_png ? &png : nullptr);
-    } else {
-      result = internal::WriteObj(mesh, path, needs_png ? &png : nullptr);
-    }
-    if (!result) {
-      return std::unexpected(result.error());
-    }
-    written.push_back(path);
-    if (format == "obj") {
-      written.push_back(fs::path(path).replace_extension(".mtl"));
-      if (mesh.HasTexture()) {
-        written.push_back(fs::path(path).replace_extension(".png"));
-      }
-    }
+  for (Expected<std::vector<fs::path>>& file : files) {
+    if (!file) return std::unexpected(file.error());
+    written.insert(written.end(), file->begin(), file->end());
   }
   return written;
 }

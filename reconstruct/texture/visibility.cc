@@ -1,6 +1,9 @@
 #include <bit>
 #include <limits>
 
+#include <tbb/enumerable_thread_specific.h>
+
+#include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture_internal.h"
 
 namespace revolve::reconstruct::texture_internal {
@@ -23,7 +26,7 @@ struct PointTerms {
 // compiler vectorises them) and each doing the operations of the functions named there in the
 // same order as they do (Eigen's dot: x + (y + z)), so the same values. Built for AVX2 too where
 // the processor has it (AVX2 brings no fused multiply-add).
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 #define REVOLVE_AVX2_TOO [[gnu::target_clones("avx2", "default")]]
 #else
 #define REVOLVE_AVX2_TOO
@@ -264,19 +267,24 @@ struct Window {  // pixels
   }
 };
 
+// A vertex's sample from a view, weighted (b, g, r, weight).
+struct VertexSample {
+  int index;
+  Float4 value;
+};
+
 // The sweep over the views; one SeeView() per view with an image, its scratch kept across views.
 class ViewSweep {
  public:
-  explicit ViewSweep(const SweepInputs& in) : in_(in), vertices_(in.mesh.vertices) {
-    const std::size_t nf = in.mesh.faces.size();
-    seen_.face_cos.assign(in.atlas ? nf * kCandidates : 0, -2.0f);  // -2: unseen
-    seen_.color_sum.assign(in.vertex_colors ? vertices_.size() : 0, Float4{0.0f, 0.0f, 0.0f, 0.0f});
-  }
-  Sightings Finish() { return std::move(seen_); }
+  // `seen`: where the faces' cosines are recorded (each face slot belongs to one view, so views
+  // seen at once write apart).
+  ViewSweep(const SweepInputs& in, Sightings* seen)
+      : in_(in), vertices_(in.mesh.vertices), seen_(*seen) {}
 
-  // View k's sightings added to the sums.
-  void SeeView(int k) {
-    ++seen_.views_used;
+  // View k's sightings: the faces' cosines recorded, the vertices' weighted samples in
+  // *samples (in the order they are to be added).
+  void SeeView(int k, std::vector<VertexSample>* samples) {
+    samples->clear();
     const ViewGeometry& g = in_.geometry[k];
     const float mm_per_px = MmPerPx(g, in_.ranking.Direction(k));
     const int cell_px =
@@ -292,7 +300,7 @@ class ViewSweep {
     for (const VertexPending& p : pending_vertices_) cells.Mark(p.u, p.v);
     cells.EndMarks();
     Splat(k, g, &cells);
-    Record(k, g, cells, cell_mm);
+    Record(k, g, cells, cell_mm, samples);
   }
 
  private:
@@ -419,7 +427,8 @@ class ViewSweep {
 
   // The pending faces and vertices view k sees (not behind their cell's depth by more than
   // their tolerance): a face's cosine recorded in its slot, a vertex's weighted sample added.
-  void Record(int k, const ViewGeometry& g, const DepthCells& cells, float cell_mm) {
+  void Record(int k, const ViewGeometry& g, const DepthCells& cells, float cell_mm,
+              std::vector<VertexSample>* samples) {
     const float max_tan = in_.max_tan;
     const float mean_edge_mm = in_.surface.mean_edge_mm;
     auto visible = [&](const Eigen::Vector3f& x, const Pending& p) {
@@ -436,13 +445,13 @@ class ViewSweep {
     const cv::Mat& image = in_.images[k];
     for (const VertexPending& p : pending_vertices_) {
       if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
-      seen_.color_sum[p.index] += p.weight * SampleBilinearWithOne(image, p.u, p.v);
+      samples->push_back(VertexSample{p.index, p.weight * SampleBilinearWithOne(image, p.u, p.v)});
     }
   }
 
   const SweepInputs& in_;
   const std::vector<Eigen::Vector3f>& vertices_;
-  Sightings seen_;
+  Sightings& seen_;
   // Scratch for a view's candidate vertices: positions and normals, then their PointTerms.
   std::vector<float> cx_, cy_, cz_, cnx_, cny_, cnz_, c_cos_, c_u_, c_v_, c_depth_, c_tolerance_,
       c_weight_;
@@ -456,11 +465,25 @@ class ViewSweep {
 }  // namespace
 
 Sightings SweepViews(const SweepInputs& in) {
-  ViewSweep sweep(in);
+  Sightings seen;
+  seen.face_cos.assign(in.atlas ? in.mesh.faces.size() * kCandidates : 0, -2.0f);  // -2: unseen
+  seen.color_sum.assign(in.vertex_colors ? in.mesh.vertices.size() : 0,
+                        Float4{0.0f, 0.0f, 0.0f, 0.0f});
+  std::vector<int> views;
   for (int k = 0; k < static_cast<int>(in.geometry.size()); ++k) {
-    if (!in.images[k].empty()) sweep.SeeView(k);
+    if (!in.images[k].empty()) views.push_back(k);
   }
-  return sweep.Finish();
+  seen.views_used = static_cast<int>(views.size());
+  // The views on all cores, each sweep's scratch kept across the views of its thread; the
+  // vertices' samples are added afterwards in view order, so the sums do not depend on it.
+  std::vector<std::vector<VertexSample>> samples(views.size());
+  tbb::enumerable_thread_specific<ViewSweep> sweeps([&] { return ViewSweep(in, &seen); });
+  ParallelFor(0, views.size(),
+              [&](std::size_t i) { sweeps.local().SeeView(views[i], &samples[i]); });
+  for (const std::vector<VertexSample>& view_samples : samples) {
+    for (const VertexSample& sample : view_samples) seen.color_sum[sample.index] += sample.value;
+  }
+  return seen;
 }
 
 }  // namespace revolve::reconstruct::texture_internal
