@@ -12,6 +12,7 @@
 
 #include "base/image_files.h"
 #include "base/image_read.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -236,6 +237,56 @@ Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max
   return image;
 }
 
+namespace {
+
+// What decoding one image of a set found (DecodeSetImage).
+struct DecodedImage {
+  std::optional<Error> error;  // unreadable, or not of the expected size
+  cv::Size size;
+  ImageKind kind = ImageKind::kPhoto;
+  bool empty_mask = false;  // a mask was made and it is empty
+};
+
+// Reads `image`'s file into image->image (photos, BGR) and image->mask (silhouettes, and photos
+// when options.segment_photos), refusing another size than `expected_size` (the first image's,
+// named `first_name`) from the header.
+DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
+                            std::optional<cv::Size> expected_size, const std::string& first_name) {
+  DecodedImage result;
+  Expected<cv::Mat> pixels = ReadImage8(image->path, options.max_image_pixels, expected_size);
+  if (!pixels) {
+    result.error = pixels.error();
+    return result;
+  }
+  result.size = pixels->size();
+  if (expected_size && result.size != *expected_size) {
+    result.error = MakeError(ErrorCode::kBadInput,
+                             fmt::format("{}: {}x{} pixels, but {} is {}x{} (all images of a set "
+                                         "must have one size)",
+                                         image->path.string(), pixels->cols, pixels->rows,
+                                         first_name, expected_size->width, expected_size->height))
+                       .error();
+    return result;
+  }
+  std::optional<cv::Mat> silhouette = BinarySilhouette(*pixels);
+  result.kind = silhouette ? ImageKind::kSilhouette : ImageKind::kPhoto;
+  if (silhouette) {
+    image->mask = std::move(*silhouette);
+  } else {
+    if (pixels->channels() == 1) {
+      cv::cvtColor(*pixels, image->image, cv::COLOR_GRAY2BGR);
+    } else {
+      image->image = std::move(*pixels);
+    }
+    if (!options.segment_photos) return result;
+    image->mask = SegmentPhoto(image->image, options.segmentation);
+  }
+  result.empty_mask = cv::countNonZero(image->mask) == 0;
+  return result;
+}
+
+}  // namespace
+
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options) {
   if (!(options.step_deg > 0.0) || !std::isfinite(options.step_deg)) {
     return MakeError(ErrorCode::kBadInput,
@@ -320,48 +371,31 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
     }
   }
 
+  // The first image gives the size; the others are decoded on all cores, each into its own slot,
+  // and checked in order afterwards, so the error reported is that of the first bad file.
+  std::vector<DecodedImage> decoded(set.images.size());
+  decoded[0] = DecodeSetImage(&set.images[0], options, std::nullopt, {});
+  if (decoded[0].error) return std::unexpected(*decoded[0].error);
+  set.width_px = decoded[0].size.width;
+  set.height_px = decoded[0].size.height;
+  set.kind = decoded[0].kind;
+  const cv::Size size = decoded[0].size;
+  ParallelFor(1, set.images.size(), [&](std::size_t i) {
+    decoded[i] = DecodeSetImage(&set.images[i], options, size, set.images[0].file_name);
+  });
   for (std::size_t i = 0; i < set.images.size(); ++i) {
-    SetImage& image = set.images[i];
-    // Every image after the first must have its size: refused from the header, before decoding.
-    Expected<cv::Mat> pixels =
-        ReadImage8(image.path, options.max_image_pixels,
-                   i == 0 ? std::nullopt : std::optional(cv::Size(set.width_px, set.height_px)));
-    if (!pixels) return std::unexpected(pixels.error());
-    if (i == 0) {
-      set.width_px = pixels->cols;
-      set.height_px = pixels->rows;
-    } else if (pixels->cols != set.width_px || pixels->rows != set.height_px) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("{}: {}x{} pixels, but {} is {}x{} (all images of a set must "
-                                   "have one size)",
-                                   image.path.string(), pixels->cols, pixels->rows,
-                                   set.images[0].file_name, set.width_px, set.height_px));
-    }
-    std::optional<cv::Mat> silhouette = BinarySilhouette(*pixels);
-    const ImageKind kind = silhouette ? ImageKind::kSilhouette : ImageKind::kPhoto;
-    if (i == 0) {
-      set.kind = kind;
-    } else if (kind != set.kind) {
+    const SetImage& image = set.images[i];
+    if (decoded[i].error) return std::unexpected(*decoded[i].error);
+    if (decoded[i].kind != set.kind) {
       return MakeError(
           ErrorCode::kBadInput,
           fmt::format("{}: a {} among {} (all images of a set must be binary silhouettes, or all "
                       "photos)",
                       image.path.string(),
-                      kind == ImageKind::kSilhouette ? "binary silhouette" : "photo",
+                      decoded[i].kind == ImageKind::kSilhouette ? "binary silhouette" : "photo",
                       set.kind == ImageKind::kSilhouette ? "binary silhouettes" : "photos"));
     }
-    if (silhouette) {
-      image.mask = std::move(*silhouette);
-    } else {
-      if (pixels->channels() == 1) {
-        cv::cvtColor(*pixels, image.image, cv::COLOR_GRAY2BGR);
-      } else {
-        image.image = *pixels;
-      }
-      if (!options.segment_photos) continue;
-      image.mask = SegmentPhoto(image.image, options.segmentation);
-    }
-    if (cv::countNonZero(image.mask) == 0) {
+    if (decoded[i].empty_mask) {
       return MakeError(ErrorCode::kBadInput,
                        fmt::format("{}: the silhouette is empty ({})", image.path.string(),
                                    set.kind == ImageKind::kSilhouette

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <random>
-#include <unordered_map>
 #include <vector>
 
+#include <tbb/parallel_sort.h>
 #include <Eigen/Dense>
 
 namespace revolve::reconstruct {
@@ -48,8 +48,9 @@ MeshStats ComputeStats(const Mesh& mesh) {
 
   stats.bbox_min_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   stats.bbox_max_mm = -stats.bbox_min_mm;
-  // Directed edge (a, b) -> uses; the key packs both indices.
-  std::unordered_map<std::uint64_t, int> directed;
+  // Every directed edge (a, b) as one key packing both indices; sorted below, a key's run is
+  // its uses.
+  std::vector<std::uint64_t> directed;
   directed.reserve(mesh.faces.size() * 3);
   auto key = [](int a, int b) {
     return (std::uint64_t{static_cast<std::uint32_t>(a)} << 32) | static_cast<std::uint32_t>(b);
@@ -69,17 +70,26 @@ MeshStats ComputeStats(const Mesh& mesh) {
       ++stats.degenerate_triangles;
     }
     for (int e = 0; e < 3; ++e) {
-      ++directed[key(f[e], f[(e + 1) % 3])];
+      directed.push_back(key(f[e], f[(e + 1) % 3]));
     }
   }
   stats.volume_mm3 = volume6 / 6.0;
   stats.oriented = true;
   stats.closed = true;
-  for (const auto& [k, uses] : directed) {
+  tbb::parallel_sort(directed.begin(), directed.end());
+  const auto uses_of = [&directed](std::uint64_t k) {
+    const auto [first, last] = std::equal_range(directed.begin(), directed.end(), k);
+    return static_cast<int>(last - first);
+  };
+  for (std::size_t i = 0; i < directed.size();) {
+    const std::uint64_t k = directed[i];
+    std::size_t j = i + 1;
+    while (j < directed.size() && directed[j] == k) ++j;
+    const int uses = static_cast<int>(j - i);
+    i = j;
     const int a = static_cast<int>(k >> 32);
     const int b = static_cast<int>(k & 0xffffffffu);
-    const auto reverse = directed.find(key(b, a));
-    const int reverse_uses = reverse == directed.end() ? 0 : reverse->second;
+    const int reverse_uses = uses_of(key(b, a));
     if (uses != 1) {
       stats.oriented = false;
     }

@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
 #include <opencv2/core.hpp>
+
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -25,6 +28,51 @@ struct ColumnIndex {
   std::vector<std::vector<int>> bins;
 };
 
+// A triangle's edge: its vector (ex, ey) and its start (px, py).
+struct Edge {
+  double ex, ey, px, py;
+};
+
+// Faces narrower than this (px) are tested pixel by pixel: their rows are too short for runs.
+constexpr int kRunMinWidthPx = 8;
+
+// Whether pixel (u, v) passes the edge's test, sign * (ex (v - py) - ey (u - px)) >= 0.
+[[gnu::always_inline]] inline bool Inside(const Edge& edge, double sign, int u, int v) {
+  return sign * (edge.ex * (static_cast<double>(v) - edge.py) -
+                 edge.ey * (static_cast<double>(u) - edge.px)) >=
+         0.0;
+}
+
+// Narrows [*lo, *hi] on row v to the pixels u where sign * (ex (v - py) - ey (u - px)) >= 0
+// (empty: *lo > *hi). The test is monotone in u, so they are a prefix or a suffix.
+void ClipRun(const Edge& edge, double sign, int v, int* lo, int* hi) {
+  const double c = edge.ex * (static_cast<double>(v) - edge.py);
+  const auto inside = [&](int u) {
+    return sign * (c - edge.ey * (static_cast<double>(u) - edge.px)) >= 0.0;
+  };
+  const double slope = sign * edge.ey;  // the test falls with u when positive
+  if (slope == 0.0) {
+    if (!inside(*lo)) *hi = *lo - 1;
+    return;
+  }
+  // Where the line crosses the row (clamped to the run), a start for the exact search.
+  const double cross = edge.px + c / edge.ey;
+  const double start = std::isnan(cross) ? static_cast<double>(*lo)
+                                         : std::clamp(cross, static_cast<double>(*lo - 1),
+                                                      static_cast<double>(*hi + 1));
+  if (slope > 0.0) {
+    int u = std::min(static_cast<int>(std::floor(start)), *hi);
+    while (u < *hi && inside(u + 1)) ++u;
+    while (u >= *lo && !inside(u)) --u;
+    *hi = u;
+  } else {
+    int u = std::max(static_cast<int>(std::ceil(start)), *lo);
+    while (u > *lo && inside(u - 1)) --u;
+    while (u <= *hi && !inside(u)) ++u;
+    *lo = u;
+  }
+}
+
 }  // namespace
 
 cv::Mat RenderSilhouette(const Mesh& mesh, const View& view) {
@@ -38,32 +86,45 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view) {
       visible[i] = 1;
     }
   }
+  // Per face and row of its bounding rectangle, the pixel centres inside all three edges (edges
+  // inclusive). Each edge's test, sign * (e_x (v - p_y) - e_y (u - p_x)) >= 0, is monotone in u
+  // even as rounded (each operation is), so the pixels that pass it are a prefix or a suffix of
+  // the row: its end is found from the line's crossing, then checked with the test itself, and
+  // the row's run set at once. The same pixels as testing each one.
   for (const Eigen::Vector3i& face : mesh.faces) {
     if (!visible[face[0]] || !visible[face[1]] || !visible[face[2]]) continue;
-    const Eigen::Vector2d& p0 = projected[face[0]];
-    const Eigen::Vector2d& p1 = projected[face[1]];
-    const Eigen::Vector2d& p2 = projected[face[2]];
-    const double area = Cross2(p1 - p0, p2 - p0);
+    const double x0 = projected[face[0]].x(), y0 = projected[face[0]].y();
+    const double x1 = projected[face[1]].x(), y1 = projected[face[1]].y();
+    const double x2 = projected[face[2]].x(), y2 = projected[face[2]].y();
+    const double area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
     if (area == 0.0 || !std::isfinite(area)) continue;
+    const int u0 = std::max(0, static_cast<int>(std::ceil(std::min(std::min(x0, x1), x2))));
+    const int u1 =
+        std::min(view.width_px - 1, static_cast<int>(std::floor(std::max(std::max(x0, x1), x2))));
+    const int v0 = std::max(0, static_cast<int>(std::ceil(std::min(std::min(y0, y1), y2))));
+    const int v1 =
+        std::min(view.height_px - 1, static_cast<int>(std::floor(std::max(std::max(y0, y1), y2))));
+    if (u0 > u1 || v0 > v1) continue;
     const double sign = area > 0.0 ? 1.0 : -1.0;
-    const double min_u = std::min({p0.x(), p1.x(), p2.x()});
-    const double max_u = std::max({p0.x(), p1.x(), p2.x()});
-    const double min_v = std::min({p0.y(), p1.y(), p2.y()});
-    const double max_v = std::max({p0.y(), p1.y(), p2.y()});
-    const int u0 = std::max(0, static_cast<int>(std::ceil(min_u)));
-    const int u1 = std::min(view.width_px - 1, static_cast<int>(std::floor(max_u)));
-    const int v0 = std::max(0, static_cast<int>(std::ceil(min_v)));
-    const int v1 = std::min(view.height_px - 1, static_cast<int>(std::floor(max_v)));
-    for (int v = v0; v <= v1; ++v) {
-      auto* row = out.ptr<std::uint8_t>(v);
-      for (int u = u0; u <= u1; ++u) {
-        if (row[u]) continue;
-        const Eigen::Vector2d p(u, v);
-        if (sign * Cross2(p1 - p0, p - p0) >= 0.0 && sign * Cross2(p2 - p1, p - p1) >= 0.0 &&
-            sign * Cross2(p0 - p2, p - p2) >= 0.0) {
-          row[u] = 255;
+    // Edges p1 - p0 from p0, p2 - p1 from p1, p0 - p2 from p2.
+    const Edge edges[3] = {
+        {x1 - x0, y1 - y0, x0, y0}, {x2 - x1, y2 - y1, x1, y1}, {x0 - x2, y0 - y2, x2, y2}};
+    if (u1 - u0 < kRunMinWidthPx) {
+      for (int v = v0; v <= v1; ++v) {
+        auto* row = out.ptr<std::uint8_t>(v);
+        for (int u = u0; u <= u1; ++u) {
+          if (!row[u] && Inside(edges[0], sign, u, v) && Inside(edges[1], sign, u, v) &&
+              Inside(edges[2], sign, u, v)) {
+            row[u] = 255;
+          }
         }
       }
+      continue;
+    }
+    for (int v = v0; v <= v1; ++v) {
+      int lo = u0, hi = u1;
+      for (int e = 0; e < 3 && lo <= hi; ++e) ClipRun(edges[e], sign, v, &lo, &hi);
+      if (lo <= hi) std::memset(out.ptr<std::uint8_t>(v) + lo, 255, hi - lo + 1);
     }
   }
   return out;
@@ -88,10 +149,14 @@ double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
                                          const std::vector<cv::Mat>& masks) {
   ReprojectionStats stats;
+  // The views on all cores, each IoU in its slot; the sum and the worst in view order.
+  stats.iou.resize(views.size());
+  ParallelFor(0, views.size(), [&](std::size_t i) {
+    stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i]), masks[i]);
+  });
   double sum = 0.0;
   for (std::size_t i = 0; i < views.size(); ++i) {
-    const double iou = MaskIoU(RenderSilhouette(mesh, views[i]), masks[i]);
-    stats.iou.push_back(iou);
+    const double iou = stats.iou[i];
     sum += iou;
     if (stats.worst_view < 0 || iou < stats.min) {
       stats.min = iou;

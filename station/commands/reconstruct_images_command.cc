@@ -283,6 +283,9 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
           !done) {
         return std::unexpected(WithContext(done.error(), set->images[i].path.string()));
       }
+      // The reconstructor keeps its own copy: the frame is not held twice.
+      set->images[i].image.release();
+      frames[i].release();
     }
     Expected<rc::Mesh> finished = (*reconstructor)->Finish();
     if (!finished) return std::unexpected(finished.error());

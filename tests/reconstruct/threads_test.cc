@@ -1,0 +1,195 @@
+// The reconstruction on all cores gives what it gives on one (reconstruct/parallel.h): every
+// model file the same bytes, the same metrics; and the silhouette rasteriser's runs equal testing
+// every pixel.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "capture/synthetic/render.h"
+#include "capture/synthetic/scene.h"
+#include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/metrics/metrics.h"
+#include "reconstruct/metrics/reprojection.h"
+#include "reconstruct/parallel.h"
+#include "reconstruct/texture/texture.h"
+#include "tests/reconstruct/sphere_scene.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+namespace fs = std::filesystem;
+
+// RenderSilhouette as it was written first: every pixel centre of each face's bounding
+// rectangle tested against the three edges.
+cv::Mat SilhouetteByEveryPixel(const Mesh& mesh, const View& view) {
+  const auto cross2 = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() * b.y() - a.y() * b.x();
+  };
+  cv::Mat out(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
+  std::vector<Eigen::Vector2d> projected(mesh.vertices.size());
+  std::vector<std::uint8_t> visible(mesh.vertices.size(), 0);
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    visible[i] = view.Project(mesh.vertices[i].cast<double>(), &projected[i]) ? 1 : 0;
+  }
+  for (const Eigen::Vector3i& face : mesh.faces) {
+    if (!visible[face[0]] || !visible[face[1]] || !visible[face[2]]) continue;
+    const Eigen::Vector2d& p0 = projected[face[0]];
+    const Eigen::Vector2d& p1 = projected[face[1]];
+    const Eigen::Vector2d& p2 = projected[face[2]];
+    const double area = cross2(p1 - p0, p2 - p0);
+    if (area == 0.0 || !std::isfinite(area)) continue;
+    const double sign = area > 0.0 ? 1.0 : -1.0;
+    const int u0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.x(), p1.x(), p2.x()}))));
+    const int u1 = std::min(view.width_px - 1,
+                            static_cast<int>(std::floor(std::max({p0.x(), p1.x(), p2.x()}))));
+    const int v0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.y(), p1.y(), p2.y()}))));
+    const int v1 = std::min(view.height_px - 1,
+                            static_cast<int>(std::floor(std::max({p0.y(), p1.y(), p2.y()}))));
+    for (int v = v0; v <= v1; ++v) {
+      for (int u = u0; u <= u1; ++u) {
+        const Eigen::Vector2d p(u, v);
+        if (sign * cross2(p1 - p0, p - p0) >= 0.0 && sign * cross2(p2 - p1, p - p1) >= 0.0 &&
+            sign * cross2(p0 - p2, p - p2) >= 0.0) {
+          out.at<std::uint8_t>(v, u) = 255;
+        }
+      }
+    }
+  }
+  return out;
+}
+
+// A small textured scan: the synthetic camera's sphere, `views` frames of 320 x 240.
+struct SmallScan {
+  VoxelGrid grid;
+  std::vector<cv::Mat> images, masks;
+  std::vector<View> views;
+};
+
+SmallScan MakeScan(int views) {
+  SmallScan scan;
+  scan.grid = *VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 120}, 96);
+  const capture::Scene scene = *capture::Scene::Create(capture::Shape::kSphere, 40.0, 80.0);
+  const Rig rig = testing::StationRig(450.0, 20.0, 40.0, 320, 240);
+  const capture::SimProjection projection(rig);
+  for (int k = 0; k < views; ++k) {
+    const double angle = 360.0 * k / views;
+    const capture::RenderOutput out =
+        capture::RenderScene(scene, projection, angle, capture::RenderSettings{}, k);
+    scan.images.push_back(out.image);
+    scan.masks.push_back(out.true_mask);
+    scan.views.push_back(testing::ViewOf(rig, angle));
+  }
+  return scan;
+}
+
+std::string Bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
+// Everything the live finish makes, with at most `threads` threads: file name -> bytes, plus
+// the metrics as text.
+std::map<std::string, std::string> Finish(const SmallScan& scan, int threads, const fs::path& dir) {
+  const ThreadLimit limit(threads);
+  VisualHull hull(scan.grid);
+  for (std::size_t k = 0; k < scan.views.size(); ++k) {
+    EXPECT_TRUE(hull.Integrate(scan.masks[k], scan.views[k]));
+  }
+  HullSurfaceOptions surface;
+  surface.clip_below_z_mm = 0.0;
+  Mesh mesh = hull.ExtractSurface(surface);
+  EXPECT_TRUE(TextureMesh(&mesh, scan.views, scan.images));
+  fs::create_directories(dir);
+  const Expected<std::vector<fs::path>> files =
+      WriteModel(mesh, dir, "model", {"ply", "obj", "stl", "glb", "wrl"});
+  EXPECT_TRUE(files);
+  std::map<std::string, std::string> result;
+  for (const fs::path& file : files.value_or(std::vector<fs::path>{})) {
+    result[file.filename().string()] = Bytes(file);
+  }
+  const ReprojectionStats reprojection = SilhouetteReprojection(mesh, scan.views, scan.masks);
+  std::ostringstream metrics;
+  metrics.precision(17);
+  for (double iou : reprojection.iou) metrics << iou << " ";
+  const MeshStats stats = ComputeStats(mesh);
+  metrics << stats.volume_mm3 << " " << stats.area_mm2 << " " << stats.closed << stats.oriented;
+  result["metrics"] = metrics.str();
+  return result;
+}
+
+TEST(Threads, OneThreadAndAllCoresWriteTheSameBytes) {
+  const SmallScan scan = MakeScan(18);
+  const fs::path dir =
+      fs::temp_directory_path() / ("revolve_threads_" + std::to_string(::getpid()));
+  const std::map<std::string, std::string> one = Finish(scan, 1, dir / "one");
+  const std::map<std::string, std::string> all = Finish(scan, 8, dir / "all");
+  fs::remove_all(dir);
+  ASSERT_EQ(one.size(), 8u);  // ply, obj, mtl, png, stl, glb, wrl and the metrics
+  for (const auto& [name, bytes] : one) {
+    ASSERT_TRUE(all.count(name)) << name;
+    EXPECT_GT(bytes.size(), 0u) << name;
+    EXPECT_TRUE(bytes == all.at(name)) << name << " differs between 1 thread and all cores";
+  }
+}
+
+TEST(Threads, ThreadLimitBoundsTheLoops) {
+  {
+    const ThreadLimit limit(1);
+    EXPECT_EQ(ThreadCount(), 1);
+  }
+  EXPECT_GE(ThreadCount(), 1);
+}
+
+TEST(Threads, SilhouetteRunsEqualTestingEveryPixel) {
+  const SmallScan scan = MakeScan(8);
+  VisualHull hull(scan.grid);
+  for (std::size_t k = 0; k < scan.views.size(); ++k) {
+    ASSERT_TRUE(hull.Integrate(scan.masks[k], scan.views[k]));
+  }
+  std::vector<Mesh> meshes = {hull.ExtractSurface()};
+  HullSurfaceOptions midpoints;
+  midpoints.sub_voxel = false;
+  meshes.push_back(hull.ExtractSurface(midpoints));
+  // Random triangles of every size and orientation, slivers, shared edges and vertices on pixel
+  // centres.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> coordinate(-70.0f, 70.0f);
+  Mesh soup;
+  for (int i = 0; i < 3000; ++i) {
+    Eigen::Vector3f a(coordinate(random), coordinate(random), coordinate(random) + 60.0f);
+    if (i % 7 == 0) a = a.array().round();  // on pixel centres in the thesis view
+    const Eigen::Vector3f b = i % 3 == 0 ? a + Eigen::Vector3f(0.01f, 0.0f, 40.0f)
+                                         : Eigen::Vector3f(coordinate(random), coordinate(random),
+                                                           coordinate(random) + 60.0f);
+    const Eigen::Vector3f c = i % 5 == 0 ? a + 0.5f * (b - a) + Eigen::Vector3f(0.0f, 1e-3f, 0.0f)
+                                         : Eigen::Vector3f(coordinate(random), coordinate(random),
+                                                           coordinate(random) + 60.0f);
+    const int first = static_cast<int>(soup.vertices.size());
+    soup.vertices.insert(soup.vertices.end(), {a, b, c});
+    soup.faces.emplace_back(first, first + 1, first + 2);
+  }
+  meshes.push_back(soup);
+  std::vector<View> views = scan.views;
+  views.push_back(ThesisView(320, 240, 30.0));
+  for (const Mesh& mesh : meshes) {
+    for (const View& view : views) {
+      const cv::Mat expected = SilhouetteByEveryPixel(mesh, view);
+      const cv::Mat got = RenderSilhouette(mesh, view);
+      ASSERT_GT(cv::countNonZero(expected), 0);
+      EXPECT_EQ(cv::countNonZero(expected != got), 0);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace revolve::reconstruct
