@@ -14,6 +14,7 @@
 
 #include "reconstruct/hull/hull_internal.h"
 #include "reconstruct/hull/marching_cubes.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 
@@ -25,6 +26,8 @@ namespace {
 constexpr std::int64_t kDirectCountMaxArea = 16;
 // Carved blocks up to this level (8 bricks a side) are cleared row by row.
 constexpr int kClearByRowsLevel = 3;
+// The children of blocks from this level up (64 voxels a side) are carved on all cores.
+constexpr int kParallelLevel = 4;
 
 // Bits of a brick that belong to voxels inside the grid, for the brick at `brick`.
 std::uint64_t BrickValidBits(const Eigen::Vector3i& brick, const Eigen::Vector3i& dims) {
@@ -459,22 +462,31 @@ bool VisualHull::Visit(const ViewData& view, const Sat& sat, int level, const Ei
   }
   ProjectedRect rects[BoxBatch::kSize];
   RectsOfBoxes(view.pixel_from_object, boxes, rects);
-  bool any = false;
-  for (int i = 0; i < count; ++i) {
+  // Whether each child still holds occupied voxels. Each child writes only its own bricks and
+  // flags, so near the top of the tree they are visited on all cores.
+  std::uint8_t child_any[BoxBatch::kSize] = {};
+  const auto visit_child = [&](std::size_t i) {
     const BlockClass child_class = ClassifyRect(view, sat, rects[i]);
     switch (child_class) {
       case BlockClass::kUnaffected:
-        any = true;
+        child_any[i] = 1;
         break;
       case BlockClass::kCarve:
         ClearBlock(level - 1, children[i]);
         break;
       case BlockClass::kMixed:
       case BlockClass::kMixedInImage:
-        any |= Visit(view, sat, level - 1, children[i], child_class);
+        child_any[i] = Visit(view, sat, level - 1, children[i], child_class) ? 1 : 0;
         break;
     }
+  };
+  if (level >= kParallelLevel) {
+    ParallelFor(0, static_cast<std::size_t>(count), visit_child);
+  } else {
+    for (int i = 0; i < count; ++i) visit_child(static_cast<std::size_t>(i));
   }
+  bool any = false;
+  for (int i = 0; i < count; ++i) any |= child_any[i] != 0;
   alive_[level][NodeIndex(level, node)] = any ? 1 : 0;
   return any;
 }
