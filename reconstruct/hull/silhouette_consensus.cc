@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/metrics/reprojection.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -42,16 +44,31 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   if (!grid) return std::unexpected(grid.error());
   const Eigen::Vector3d middle = 0.5 * (box_min + box_max);
   SilhouetteConsensus result;
-  for (std::size_t i = 0; i < masks.size(); ++i) {
+  result.agreement.resize(masks.size());
+  result.masks.resize(masks.size());
+  // The leave-one-out hulls on all cores (reconstruct/parallel.h), each view's results in its
+  // slot; the first error in view order is returned.
+  // Each view is prepared once for all the hulls it carves.
+  std::vector<std::optional<Error>> errors(masks.size());
+  std::vector<VisualHull::PreparedView> prepared(masks.size());
+  ParallelFor(0, masks.size(), [&](std::size_t j) {
+    Expected<VisualHull::PreparedView> view = VisualHull::PrepareView(masks[j], views[j]);
+    if (view) {
+      prepared[j] = std::move(*view);
+    } else {
+      errors[j] = view.error();
+    }
+  });
+  for (const std::optional<Error>& error : errors) {
+    if (error) return std::unexpected(*error);
+  }
+  ParallelFor(0, masks.size(), [&](std::size_t i) {
     VisualHull hull(*grid);
     for (std::size_t j = 0; j < masks.size(); ++j) {
-      if (j == i) continue;
-      if (Expected<void> done = hull.Integrate(masks[j], views[j]); !done) {
-        return std::unexpected(done.error());
-      }
+      if (j != i) hull.Integrate(prepared[j]);
     }
     const cv::Mat others = RenderSilhouette(hull.ExtractSurface(), views[i]);
-    result.agreement.push_back(MaskIoU(masks[i], others));
+    result.agreement[i] = MaskIoU(masks[i], others);
     // The coarse hull's surface may lie up to half a voxel inside the true one.
     const int radius =
         std::max(options.tolerance_px,
@@ -60,8 +77,8 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
     cv::dilate(
         others, allowed,
         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-    result.masks.push_back(masks[i] & allowed);
-  }
+    result.masks[i] = masks[i] & allowed;
+  });
   return result;
 }
 

@@ -141,7 +141,7 @@ void PackMask(const cv::Mat& mask01, const cv::Rect& roi, std::vector<std::uint6
 
 }  // namespace hull_internal
 
-Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const View& view) const {
+Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const View& view) {
   if (view.width_px <= 0 || view.height_px <= 0) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("view has no image size ({}x{})", view.width_px, view.height_px));
@@ -521,7 +521,28 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
   if (!data) {
     return std::unexpected(data.error());
   }
-  const Sat sat = MakeSat(*data);
+  Carve(*data, MakeSat(*data));
+  views_.push_back(std::move(*data));
+  return {};
+}
+
+Expected<VisualHull::PreparedView> VisualHull::PrepareView(const cv::Mat& mask, const View& view) {
+  Expected<ViewData> data = Prepare(mask, view);
+  if (!data) {
+    return std::unexpected(data.error());
+  }
+  PreparedView prepared;
+  prepared.sat_ = std::make_shared<const Sat>(MakeSat(*data));
+  prepared.data_ = std::make_shared<const ViewData>(std::move(*data));
+  return prepared;
+}
+
+void VisualHull::Integrate(const PreparedView& view) {
+  Carve(*view.data_, *view.sat_);
+  views_.push_back(*view.data_);
+}
+
+void VisualHull::Carve(const ViewData& data, const Sat& sat) {
   // The root: the whole grid.
   const int root = static_cast<int>(level_dims_.size()) - 1;
   if (root == 0 ? bricks_[0] != 0 : alive_[root][0] != 0) {
@@ -531,16 +552,14 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
       AddBox(&boxes, i, Eigen::Vector3i::Zero(), Eigen::Vector3i::Zero());  // unused
     }
     ProjectedRect rects[BoxBatch::kSize];
-    RectsOfBoxes(data->pixel_from_object, boxes, rects);
-    const BlockClass root_class = ClassifyRect(*data, sat, rects[0]);
+    RectsOfBoxes(data.pixel_from_object, boxes, rects);
+    const BlockClass root_class = ClassifyRect(data, sat, rects[0]);
     if (root_class == BlockClass::kCarve) {
       ClearBlock(root, Eigen::Vector3i::Zero());
     } else if (root_class != BlockClass::kUnaffected) {
-      Visit(*data, sat, root, Eigen::Vector3i::Zero(), root_class);
+      Visit(data, sat, root, Eigen::Vector3i::Zero(), root_class);
     }
   }
-  views_.push_back(std::move(*data));
-  return {};
 }
 
 Expected<void> VisualHull::IntegrateNaive(const cv::Mat& mask, const View& view) {

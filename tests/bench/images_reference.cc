@@ -1,0 +1,69 @@
+// The references the whole `revolve reconstruct --images` is timed against (docs/performance.md),
+// each on one thread, as a process of its own:
+//   images_reference decode DIR            decodes every image of DIR (cv::imread), nothing more
+//   images_reference naive-carve DIR RES   loads DIR's binary silhouettes, finds the carving volume
+//                                          and carves RES^3 voxels per voxel (thesis cameras, 10
+//                                          degrees a view); writes nothing
+// Prints what it did; exit status 1 on a bad folder.
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "base/image_files.h"
+#include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/image_set.h"
+#include "reconstruct/parallel.h"
+
+namespace {
+
+namespace rc = revolve::reconstruct;
+
+int Decode(const std::filesystem::path& dir) {
+  const revolve::Expected<std::vector<std::filesystem::path>> files = revolve::ListImageFiles(dir);
+  if (!files) {
+    std::fprintf(stderr, "%s\n", files.error().message.c_str());
+    return 1;
+  }
+  std::size_t pixels = 0;
+  for (const std::filesystem::path& file : *files) {
+    pixels += cv::imread(file.string(), cv::IMREAD_UNCHANGED).total();
+  }
+  std::printf("decoded %zu images, %zu pixels\n", files->size(), pixels);
+  return 0;
+}
+
+int NaiveCarve(const std::filesystem::path& dir, int resolution) {
+  rc::ImageSetOptions options;
+  const revolve::Expected<rc::ImageSet> set = rc::LoadImageSet(dir, options);
+  if (!set || set->kind != rc::ImageKind::kSilhouette) {
+    std::fprintf(stderr, "%s: expected binary silhouettes\n", dir.string().c_str());
+    return 1;
+  }
+  std::vector<cv::Mat> masks;
+  std::vector<revolve::View> views;
+  for (const rc::SetImage& image : set->images) {
+    masks.push_back(image.mask);
+    views.push_back(rc::ThesisView(set->width_px, set->height_px, image.angle_deg));
+  }
+  const revolve::Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(masks, views);
+  if (!volume) return 1;
+  rc::VisualHull hull(*rc::VoxelGrid::FromBox(volume->box.min, volume->box.max, resolution));
+  for (std::size_t k = 0; k < masks.size(); ++k) (void)hull.IntegrateNaive(masks[k], views[k]);
+  std::printf("carved %zu views per voxel: %lld voxels occupied\n", masks.size(),
+              static_cast<long long>(hull.OccupiedCount()));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const rc::ThreadLimit one_thread(1);
+  const std::string mode = argc > 1 ? argv[1] : "";
+  if (mode == "decode" && argc == 3) return Decode(argv[2]);
+  if (mode == "naive-carve" && argc == 4) return NaiveCarve(argv[2], std::atoi(argv[3]));
+  std::fprintf(stderr, "usage: images_reference decode DIR | naive-carve DIR RESOLUTION\n");
+  return 2;
+}
