@@ -38,7 +38,7 @@ class HullReconstructor final : public Reconstructor {
     if (image.empty()) {
       // no colour from this view
     } else if (image.type() == CV_8UC3) {
-      bgr = image.clone();
+      bgr = options_.share_frames ? image : image.clone();
     } else if (image.type() == CV_8UC1) {
       cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
     } else if (image.type() == CV_8UC4) {

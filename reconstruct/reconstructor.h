@@ -39,6 +39,10 @@ struct ReconstructOptions {
   int meridian_row_step_px = 9;
   // meridian: also take the rightmost pixel as the meridian at theta + 180 deg (thesis 6.2).
   bool meridian_both_sides = false;
+  // hull: keep a reference to each frame given to Integrate rather than a copy, for callers that
+  // never write to a frame afterwards (reconstruct --images); a camera may reuse its buffers, so
+  // the scan keeps copies. Not a configuration key.
+  bool share_frames = false;
 };
 
 // Parses [reconstruct]: method ("hull" | "meridian"), meridian_row_step_px (1..256),
@@ -73,7 +77,8 @@ class Reconstructor {
 // cubes with sub-voxel vertices; reconstruct/hull/visual_hull.h; "meridian": the thesis's
 // meridian feature points and strips, reconstruct/meridian/meridian.h, which ignores the volume
 // and resolution). The hull keeps a copy of each non-empty frame (1.3 MB at 768x576) and colours
-// the mesh from them in Finish (vertex colours, and a texture atlas when options.texture).
+// the mesh from them in Finish (vertex colours, and a texture atlas when options.texture); with
+// options.share_frames, a reference to each BGR frame instead.
 // Errors: bad_input for an unknown method, a resolution outside 16..1024 or an empty volume.
 Expected<std::unique_ptr<Reconstructor>> Create(const ReconstructOptions& options);
 

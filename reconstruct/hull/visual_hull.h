@@ -94,8 +94,8 @@ class VisualHull {
   // size, or a non-finite projection.
   Expected<void> Integrate(const cv::Mat& mask, const View& view);
 
-  // A view made ready for carving once: its mask as 0/1 bytes, the mask's bounding rectangle,
-  // its packed bits and summed-area table. For one view integrated into several hulls (the
+  // A view made ready for carving once: its mask as 0/1 bytes, the mask's bounding rectangle
+  // and its packed bits. For one view integrated into several hulls (the
   // silhouette consensus's leave-one-out hulls): they share its pixels instead of each copying
   // and counting them again. Copies share the same data.
   class PreparedView;
@@ -151,7 +151,6 @@ class VisualHull {
    private:
     friend class VisualHull;
     std::shared_ptr<const ViewData> data_;
-    std::shared_ptr<const Sat> sat_;
   };
 
  private:

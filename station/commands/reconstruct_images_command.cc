@@ -259,6 +259,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
   reconstruct_options.flat_bottom = false;
   reconstruct_options.meridian_row_step_px = options.row_step_px;
   reconstruct_options.meridian_both_sides = options.both_sides;
+  reconstruct_options.share_frames = true;  // the set's frames are not written to again
   std::optional<rc::MeridianModel> meridian_model;
   rc::Mesh mesh;
   if (options.method == "meridian") {
@@ -283,7 +284,7 @@ Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostre
           !done) {
         return std::unexpected(WithContext(done.error(), set->images[i].path.string()));
       }
-      // The reconstructor keeps its own copy: the frame is not held twice.
+      // The reconstructor holds the frame now; the set's references go.
       set->images[i].image.release();
       frames[i].release();
     }
