@@ -9,6 +9,8 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+// The x86 SIMD paths; REVOLVE_PORTABLE (the CMake option) leaves them out for the portable
+// code, which gives the same values (./run test checks both).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 #include <immintrin.h>
 #define REVOLVE_X86_AVX2 1
