@@ -12,6 +12,7 @@
 #include "capture/segment/set_segmentation.h"
 #include "config/config.h"
 #include "reconstruct/hull/silhouette_consensus.h"
+#include "reconstruct/parallel.h"
 #include "station/contact_sheet.h"
 
 namespace revolve::station {
@@ -101,20 +102,27 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
     return MakeError(ErrorCode::kIo,
                      fmt::format("{}: cannot create the folder: {}", dir.string(), ec.message()));
   }
-  std::vector<cv::Mat> tiles;
-  for (std::size_t i = 0; i < masks.size(); ++i) {
+  // The masks on all cores (reconstruct/parallel.h), each tile and error in its slot; the first
+  // error in image order is returned.
+  std::vector<cv::Mat> tiles(masks.size());
+  std::vector<Expected<void>> written(masks.size());
+  reconstruct::ParallelFor(0, masks.size(), [&](std::size_t i) {
     const cv::Mat mask =
         masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
     const std::filesystem::path path =
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
-    if (Expected<void> w = WritePng(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1}); !w) return w;
+    written[i] = WritePng(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1});
+    if (!written[i]) return;
     cv::Mat shown;
     if (i < photos.size() && !photos[i].empty()) {
       shown = photos[i];
     } else {
       cv::cvtColor(mask, shown, cv::COLOR_GRAY2BGR);
     }
-    tiles.push_back(ContactSheetTile(shown, mask));
+    tiles[i] = ContactSheetTile(shown, mask);
+  });
+  for (const Expected<void>& w : written) {
+    if (!w) return w;
   }
   return WritePng(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
 }
