@@ -72,299 +72,346 @@ std::string CheckOptions(const ReconstructImagesOptions& options) {
   return {};
 }
 
-Expected<nlohmann::json> Run(const ReconstructImagesOptions& options, std::ostream& out) {
-  nlohmann::json report;
-  nlohmann::json times;
-  const Clock::time_point start = Clock::now();
+// One run of `reconstruct --images`: the steps in order, sharing what they found. Each step
+// adds its part of report.json and its time.
+class ImagesRun {
+ public:
+  ImagesRun(const ReconstructImagesOptions& options, std::ostream& out)
+      : options_(options), out_(out), thesis_mode_(!options.cameras.has_value()) {}
+
+  Expected<nlohmann::json> Run() {
+    const Clock::time_point start = Clock::now();
+    REVOLVE_RETURN_IF_ERROR(PrepareOutput());
+    REVOLVE_RETURN_IF_ERROR(Timed("load_ms", [&] { return Load(); }));
+    REVOLVE_RETURN_IF_ERROR(Timed("segment_ms", [&] { return Segment(); }));
+    REVOLVE_RETURN_IF_ERROR(RequireTwoUsable());
+    REVOLVE_RETURN_IF_ERROR(Timed("cameras_ms", [&] { return CamerasAndVolume(); }));
+    REVOLVE_RETURN_IF_ERROR(Timed("consensus_ms", [&] { return Consensus(); }));
+    REVOLVE_RETURN_IF_ERROR(Timed("reconstruct_ms", [&] { return Reconstruct(); }));
+    REVOLVE_RETURN_IF_ERROR(Timed("write_ms", [&] { return WriteFiles(); }));
+    REVOLVE_RETURN_IF_ERROR(Timed("metrics_ms", [&] { return Measure(); }));
+    times_["total_ms"] = MsSince(start);
+    report_["times_ms"] = times_;
+    REVOLVE_RETURN_IF_ERROR(WriteReportAndSay());
+    return report_;
+  }
+
+ private:
+  template <typename Step>
+  Expected<void> Timed(const char* key, Step&& step) {
+    const Clock::time_point t = Clock::now();
+    Expected<void> done = step();
+    times_[key] = MsSince(t);
+    return done;
+  }
 
   // The output folder first (a read-only or unwritable --out is said before any work), but not
   // for a set that is not there: a mistyped --images leaves nothing behind.
-  if (std::error_code ec; !std::filesystem::is_directory(options.images, ec)) {
-    return MakeError(ErrorCode::kNotFound,
-                     fmt::format("{}: no such folder", options.images.string()));
-  }
-  if (auto made = CreateOutputFolder(options.out / "model"); !made) {
-    return std::unexpected(made.error());
+  Expected<void> PrepareOutput() {
+    if (std::error_code ec; !std::filesystem::is_directory(options_.images, ec)) {
+      return MakeError(ErrorCode::kNotFound,
+                       fmt::format("{}: no such folder", options_.images.string()));
+    }
+    return CreateOutputFolder(options_.out / "model");
   }
 
-  // Inputs.
-  Clock::time_point t = Clock::now();
-  const bool legacy_threshold = options.segment == "threshold";
-  std::optional<capture::SegmentOptions> segment_options;
-  if (!legacy_threshold) {
-    Expected<capture::SegmentOptions> parsed =
-        ImagesSegmentOptions(options.config, options.segment);
-    if (!parsed) return std::unexpected(parsed.error());
-    segment_options = std::move(*parsed);
+  Expected<void> Load() {
+    legacy_threshold_ = options_.segment == "threshold";
+    if (!legacy_threshold_) {
+      REVOLVE_ASSIGN_OR_RETURN(segment_options_,
+                               ImagesSegmentOptions(options_.config, options_.segment));
+    }
+    rc::ImageSetOptions set_options;
+    set_options.max_image_pixels = static_cast<std::int64_t>(options_.max_image_mp * 1e6);
+    set_options.pattern = options_.pattern;
+    set_options.step_deg = options_.step_deg;
+    set_options.segmentation.threshold = options_.threshold;
+    set_options.segment_photos = legacy_threshold_;
+    REVOLVE_ASSIGN_OR_RETURN(set_, rc::LoadImageSet(options_.images, set_options));
+    photos_ = set_.kind == rc::ImageKind::kPhoto;
+    out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
+                        photos_ ? "photos" : "binary silhouettes", set_.width_px, set_.height_px,
+                        options_.images.string());
+    for (const rc::SetImage& image : set_.images) {
+      names_.push_back(image.file_name);
+      masks_.push_back(image.mask);
+      frames_.push_back(image.image);
+    }
+    problems_.assign(masks_.size(), std::string());
+    return {};
   }
-  rc::ImageSetOptions set_options;
-  set_options.max_image_pixels = static_cast<std::int64_t>(options.max_image_mp * 1e6);
-  set_options.pattern = options.pattern;
-  set_options.step_deg = options.step_deg;
-  set_options.segmentation.threshold = options.threshold;
-  set_options.segment_photos = legacy_threshold;
-  Expected<rc::ImageSet> set = rc::LoadImageSet(options.images, set_options);
-  if (!set) return std::unexpected(set.error());
-  const bool photos = set->kind == rc::ImageKind::kPhoto;
-  out << fmt::format("{} {} of {}x{} px from {}\n", set->images.size(),
-                     photos ? "photos" : "binary silhouettes", set->width_px, set->height_px,
-                     options.images.string());
-  std::vector<std::string> names;
-  std::vector<cv::Mat> masks;
-  std::vector<cv::Mat> frames;
-  for (const rc::SetImage& image : set->images) {
-    names.push_back(image.file_name);
-    masks.push_back(image.mask);
-    frames.push_back(image.image);
-  }
-  times["load_ms"] = MsSince(t);
 
   // Silhouettes: segmented here (photos), saved for a person to check before anything can fail.
-  t = Clock::now();
-  std::vector<std::string> problems(masks.size());
-  if (photos && !legacy_threshold) {
-    Expected<SetMasks> segmented = SegmentPhotos(frames, *segment_options, out);
-    if (!segmented) return std::unexpected(segmented.error());
-    masks = std::move(segmented->masks);
-    problems = std::move(segmented->problems);
-    report["segmentation"] = segmented->report;
-  } else {
-    report["segmentation"] = {
-        {"method", photos ? "threshold" : "none (binary silhouettes)"},
-        {"reason", photos
-                       ? fmt::format("--segment threshold: any channel above {}", options.threshold)
-                       : "the images are silhouettes already"}};
+  Expected<void> Segment() {
+    if (photos_ && !legacy_threshold_) {
+      SetMasks segmented;
+      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(frames_, *segment_options_, out_));
+      masks_ = std::move(segmented.masks);
+      problems_ = std::move(segmented.problems);
+      report_["segmentation"] = segmented.report;
+    } else {
+      report_["segmentation"] = {
+          {"method", photos_ ? "threshold" : "none (binary silhouettes)"},
+          {"reason",
+           photos_ ? fmt::format("--segment threshold: any channel above {}", options_.threshold)
+                   : "the images are silhouettes already"}};
+    }
+    return WriteMasks(options_.out, names_, frames_, masks_);
   }
-  if (Expected<void> written = WriteMasks(options.out, names, frames, masks); !written) {
-    return std::unexpected(written.error());
+
+  void CollectUsable() {
+    usable_.clear();
+    for (std::size_t i = 0; i < masks_.size(); ++i) {
+      if (problems_[i].empty()) usable_.push_back(i);
+    }
   }
-  times["segment_ms"] = MsSince(t);
-  std::vector<std::size_t> usable;
-  for (std::size_t i = 0; i < masks.size(); ++i) {
-    if (problems[i].empty()) usable.push_back(i);
-  }
-  if (usable.size() < 2) {
+
+  Expected<void> RequireTwoUsable() {
+    CollectUsable();
+    if (usable_.size() >= 2) return {};
     std::string why;
-    for (std::size_t i = 0; i < masks.size(); ++i) {
-      if (!problems[i].empty()) why += fmt::format("\n  {}: {}", names[i], problems[i]);
+    for (std::size_t i = 0; i < masks_.size(); ++i) {
+      if (!problems_[i].empty()) why += fmt::format("\n  {}: {}", names_[i], problems_[i]);
     }
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{}: only {} of {} images gave a usable silhouette (the masks "
                                  "are in {}):{}",
-                                 options.images.string(), usable.size(), masks.size(),
-                                 (options.out / "masks").string(), why));
+                                 options_.images.string(), usable_.size(), masks_.size(),
+                                 (options_.out / "masks").string(), why));
   }
-  std::vector<cv::Mat> usable_masks;
-  usable_masks.reserve(usable.size());
-  for (std::size_t i : usable) usable_masks.push_back(masks[i]);
 
-  // Cameras.
-  t = Clock::now();
-  std::vector<View> views;
-  const bool thesis_mode = !options.cameras.has_value();
-  nlohmann::json input = {
-      {"images", options.images.string()}, {"pattern", options.pattern},
-      {"count", set->images.size()},       {"kind", photos ? "photos" : "binary silhouettes"},
-      {"width_px", set->width_px},         {"height_px", set->height_px}};
-  if (photos && legacy_threshold) input["threshold"] = options.threshold;
-  if (thesis_mode) {
-    for (const rc::SetImage& image : set->images) {
-      views.push_back(rc::ThesisView(set->width_px, set->height_px, image.angle_deg));
+  Expected<void> CamerasAndVolume() {
+    nlohmann::json input = {
+        {"images", options_.images.string()}, {"pattern", options_.pattern},
+        {"count", set_.images.size()},        {"kind", photos_ ? "photos" : "binary silhouettes"},
+        {"width_px", set_.width_px},          {"height_px", set_.height_px}};
+    if (photos_ && legacy_threshold_) input["threshold"] = options_.threshold;
+    if (thesis_mode_) {
+      for (const rc::SetImage& image : set_.images) {
+        views_.push_back(rc::ThesisView(set_.width_px, set_.height_px, image.angle_deg));
+      }
+      input["camera_model"] = "thesis (calibration-free orthographic: axis on the middle column)";
+      input["step_deg"] = options_.step_deg;
+    } else {
+      REVOLVE_RETURN_IF_ERROR(ImportCameras(input));
     }
-    input["camera_model"] = "thesis (calibration-free orthographic: axis on the middle column)";
-    input["step_deg"] = options.step_deg;
-  } else {
-    Expected<rc::CameraFile> cameras = rc::ReadCameraFile(*options.cameras);
-    if (!cameras) return std::unexpected(cameras.error());
-    Expected<std::vector<View>> imported =
-        rc::ViewsForImages(*cameras, names, set->width_px, set->height_px);
-    if (!imported) return std::unexpected(imported.error());
-    views = std::move(*imported);
-    input["cameras"] = options.cameras->string();
-    input["camera_model"] = cameras->format == rc::CameraFileFormat::kMiddlebury
+    report_["input"] = input;
+    report_["method"] = options_.method;
+    report_["units"] = thesis_mode_ ? "px" : "as in the cameras file";
+    report_["scale"] = thesis_mode_ ? "unscaled (thesis mode: one unit is one pixel at the axis)"
+                                    : "the cameras file's units (Middlebury: metres)";
+    return FindVolume();
+  }
+
+  Expected<void> ImportCameras(nlohmann::json& input) {
+    rc::CameraFile cameras;
+    REVOLVE_ASSIGN_OR_RETURN(cameras, rc::ReadCameraFile(*options_.cameras));
+    REVOLVE_ASSIGN_OR_RETURN(views_,
+                             rc::ViewsForImages(cameras, names_, set_.width_px, set_.height_px));
+    input["cameras"] = options_.cameras->string();
+    input["camera_model"] = cameras.format == rc::CameraFileFormat::kMiddlebury
                                 ? "imported K [R t] (Middlebury)"
                                 : "imported 3x4 projection matrices";
     nlohmann::json odd = nlohmann::json::object();
-    for (std::size_t i = 0; i < views.size(); ++i) {
-      const rc::ProjectionCheck check = rc::CheckProjection(views[i].pixel_from_object);
-      if (!check.oddities.empty()) odd[names[i]] = check.oddities;
+    for (std::size_t i = 0; i < views_.size(); ++i) {
+      const rc::ProjectionCheck check = rc::CheckProjection(views_[i].pixel_from_object);
+      if (!check.oddities.empty()) odd[names_[i]] = check.oddities;
     }
     if (!odd.empty()) input["camera_oddities"] = odd;
-    if (cameras->cameras.size() > views.size()) {
-      out << fmt::format("note: {} of the {} cameras in {} have no image\n",
-                         cameras->cameras.size() - views.size(), cameras->cameras.size(),
-                         options.cameras->string());
+    if (cameras.cameras.size() > views_.size()) {
+      out_ << fmt::format("note: {} of the {} cameras in {} have no image\n",
+                          cameras.cameras.size() - views_.size(), cameras.cameras.size(),
+                          options_.cameras->string());
     }
+    return {};
   }
-  report["input"] = input;
-  report["method"] = options.method;
-  report["units"] = thesis_mode ? "px" : "as in the cameras file";
-  report["scale"] = thesis_mode ? "unscaled (thesis mode: one unit is one pixel at the axis)"
-                                : "the cameras file's units (Middlebury: metres)";
 
   // Carving volume, and the depth sign of every view from a point known to be in front.
-  Eigen::Vector3d box_min = Eigen::Vector3d::Zero();
-  Eigen::Vector3d box_max = Eigen::Vector3d::Zero();
-  if (options.bbox) {
-    const auto& b = *options.bbox;
-    box_min = Eigen::Vector3d(b[0], b[1], b[2]);
-    box_max = Eigen::Vector3d(b[3], b[4], b[5]);
-    if (!thesis_mode) {
-      for (View& view : views) view = rc::NormaliseViewSign(view, 0.5 * (box_min + box_max));
+  Expected<void> FindVolume() {
+    if (options_.bbox) {
+      const auto& b = *options_.bbox;
+      box_min_ = Eigen::Vector3d(b[0], b[1], b[2]);
+      box_max_ = Eigen::Vector3d(b[3], b[4], b[5]);
+      if (!thesis_mode_) {
+        for (View& view : views_) view = rc::NormaliseViewSign(view, 0.5 * (box_min_ + box_max_));
+      }
+      report_["volume"] = {
+          {"source", "--bbox"}, {"min", Vec3Json(box_min_)}, {"max", Vec3Json(box_max_)}};
+      return {};
     }
-    report["volume"] = {
-        {"source", "--bbox"}, {"min", Vec3Json(box_min)}, {"max", Vec3Json(box_max)}};
-  } else {
+    std::vector<cv::Mat> usable_masks;
     std::vector<View> usable_views;
-    usable_views.reserve(usable.size());
-    for (std::size_t i : usable) usable_views.push_back(views[i]);
+    usable_masks.reserve(usable_.size());
+    usable_views.reserve(usable_.size());
+    for (std::size_t i : usable_) {
+      usable_masks.push_back(masks_[i]);
+      usable_views.push_back(views_[i]);
+    }
     Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views);
     if (!volume) {
       return std::unexpected(WithContext(volume.error(), "finding the carving volume"));
     }
-    for (View& view : views) view = rc::NormaliseViewSign(view, volume->centre);
-    box_min = volume->box.min;
-    box_max = volume->box.max;
-    report["volume"] = {{"source", "silhouettes"},
-                        {"min", Vec3Json(box_min)},
-                        {"max", Vec3Json(box_max)},
-                        {"centre", Vec3Json(volume->centre)},
-                        {"unbounded_by_the_views", volume->touches_limit}};
+    for (View& view : views_) view = rc::NormaliseViewSign(view, volume->centre);
+    box_min_ = volume->box.min;
+    box_max_ = volume->box.max;
+    report_["volume"] = {{"source", "silhouettes"},
+                         {"min", Vec3Json(box_min_)},
+                         {"max", Vec3Json(box_max_)},
+                         {"centre", Vec3Json(volume->centre)},
+                         {"unbounded_by_the_views", volume->touches_limit}};
+    return {};
   }
-  times["cameras_ms"] = MsSince(t);
 
   // Every mask against the hull of the other views.
-  t = Clock::now();
-  Expected<std::vector<double>> agreement =
-      ApplyConsensus(masks, views, problems, box_min, box_max, out);
-  if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
-  usable.clear();
-  for (std::size_t i = 0; i < masks.size(); ++i) {
-    if (problems[i].empty()) usable.push_back(i);
+  Expected<void> Consensus() {
+    Expected<std::vector<double>> agreement =
+        ApplyConsensus(masks_, views_, problems_, box_min_, box_max_, out_);
+    if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
+    agreement_ = std::move(*agreement);
+    CollectUsable();
+    return WriteMasks(options_.out, names_, frames_, masks_);
   }
-  if (Expected<void> written = WriteMasks(options.out, names, frames, masks); !written) {
-    return std::unexpected(written.error());
-  }
-  times["consensus_ms"] = MsSince(t);
 
-  // Reconstruction.
-  t = Clock::now();
-  rc::ReconstructOptions reconstruct_options;
-  reconstruct_options.method = options.method;
-  reconstruct_options.resolution = options.resolution;
-  reconstruct_options.bbox_min_mm = box_min;
-  reconstruct_options.bbox_max_mm = box_max;
-  // No turntable plate at z = 0 here: thesis mode's z = 0 is the bottom row, a cameras file's
-  // frame is its own.
-  reconstruct_options.flat_bottom = false;
-  reconstruct_options.meridian_row_step_px = options.row_step_px;
-  reconstruct_options.meridian_both_sides = options.both_sides;
-  reconstruct_options.share_frames = true;  // the set's frames are not written to again
-  std::optional<rc::MeridianModel> meridian_model;
-  rc::Mesh mesh;
-  if (options.method == "meridian") {
-    rc::MeridianReconstructor meridian(rc::MeridianOptions{options.row_step_px, options.both_sides,
-                                                           reconstruct_options.texture_size_px});
-    for (std::size_t i : usable) {
-      if (Expected<void> done = meridian.Integrate(masks[i], set->images[i].image, views[i]);
-          !done) {
-        return std::unexpected(WithContext(done.error(), set->images[i].path.string()));
-      }
-    }
-    Expected<rc::MeridianModel> model = meridian.FinishModel();
-    if (!model) return std::unexpected(model.error());
-    mesh = model->mesh;
-    meridian_model = std::move(*model);
-  } else {
-    Expected<std::unique_ptr<rc::Reconstructor>> reconstructor = rc::Create(reconstruct_options);
-    if (!reconstructor) return std::unexpected(reconstructor.error());
-    for (std::size_t i : usable) {
+  Expected<void> Reconstruct() {
+    if (options_.method == "meridian") return ReconstructMeridian();
+    rc::ReconstructOptions reconstruct_options;
+    reconstruct_options.method = options_.method;
+    reconstruct_options.resolution = options_.resolution;
+    reconstruct_options.bbox_min_mm = box_min_;
+    reconstruct_options.bbox_max_mm = box_max_;
+    // No turntable plate at z = 0 here: thesis mode's z = 0 is the bottom row, a cameras file's
+    // frame is its own.
+    reconstruct_options.flat_bottom = false;
+    reconstruct_options.share_frames = true;  // the set's frames are not written to again
+    reconstruct_options.meridian_row_step_px = options_.row_step_px;
+    reconstruct_options.meridian_both_sides = options_.both_sides;
+    std::unique_ptr<rc::Reconstructor> reconstructor;
+    REVOLVE_ASSIGN_OR_RETURN(reconstructor, rc::Create(reconstruct_options));
+    for (std::size_t i : usable_) {
       if (Expected<void> done =
-              (*reconstructor)->Integrate(masks[i], set->images[i].image, views[i]);
+              reconstructor->Integrate(masks_[i], set_.images[i].image, views_[i]);
           !done) {
-        return std::unexpected(WithContext(done.error(), set->images[i].path.string()));
+        return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
       }
       // The reconstructor holds the frame now; the set's references go.
-      set->images[i].image.release();
-      frames[i].release();
+      set_.images[i].image.release();
+      frames_[i].release();
     }
-    Expected<rc::Mesh> finished = (*reconstructor)->Finish();
-    if (!finished) return std::unexpected(finished.error());
-    mesh = std::move(*finished);
+    REVOLVE_ASSIGN_OR_RETURN(mesh_, reconstructor->Finish());
+    return {};
   }
-  times["reconstruct_ms"] = MsSince(t);
 
-  // Files.
-  t = Clock::now();
-  const std::filesystem::path model_dir = options.out / "model";
-  std::error_code ec;
-  std::filesystem::create_directories(model_dir, ec);
-  if (ec) {
-    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot create the folder: {}",
-                                                 model_dir.string(), ec.message()));
+  Expected<void> ReconstructMeridian() {
+    rc::MeridianReconstructor meridian(rc::MeridianOptions{
+        options_.row_step_px, options_.both_sides, rc::ReconstructOptions{}.texture_size_px});
+    for (std::size_t i : usable_) {
+      if (Expected<void> done = meridian.Integrate(masks_[i], set_.images[i].image, views_[i]);
+          !done) {
+        return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
+      }
+    }
+    rc::MeridianModel model;
+    REVOLVE_ASSIGN_OR_RETURN(model, meridian.FinishModel());
+    mesh_ = model.mesh;
+    meridian_model_ = std::move(model);
+    return {};
   }
-  // A meridian mesh carries its view-dependent texture: WriteModel writes it into the VRML.
-  Expected<std::vector<std::filesystem::path>> files =
-      rc::WriteModel(mesh, model_dir, "model", options.formats);
-  if (!files) return std::unexpected(files.error());
-  times["write_ms"] = MsSince(t);
 
-  // Metrics.
-  t = Clock::now();
-  const rc::MeshStats stats = rc::ComputeStats(mesh);
-  nlohmann::json file_names = nlohmann::json::array();
-  for (const std::filesystem::path& f : *files) {
-    file_names.push_back(std::filesystem::relative(f, options.out).string());
+  Expected<void> WriteFiles() {
+    const std::filesystem::path model_dir = options_.out / "model";
+    std::error_code ec;
+    std::filesystem::create_directories(model_dir, ec);
+    if (ec) {
+      return MakeError(ErrorCode::kIo, fmt::format("{}: cannot create the folder: {}",
+                                                   model_dir.string(), ec.message()));
+    }
+    // A meridian mesh carries its view-dependent texture: WriteModel writes it into the VRML.
+    REVOLVE_ASSIGN_OR_RETURN(files_, rc::WriteModel(mesh_, model_dir, "model", options_.formats));
+    return {};
   }
-  report["model"] = {{"files", file_names},
-                     {"vertices", stats.vertex_count},
-                     {"triangles", stats.triangle_count},
-                     {"volume", stats.volume_mm3},
-                     {"surface_area", stats.area_mm2},
-                     {"bbox_min", Vec3Json(stats.bbox_min_mm)},
-                     {"bbox_max", Vec3Json(stats.bbox_max_mm)},
-                     {"dimensions", Vec3Json(stats.bbox_max_mm - stats.bbox_min_mm)},
-                     {"watertight", stats.closed},
-                     {"consistently_oriented", stats.oriented}};
-  if (meridian_model) {
-    report["model"]["meridians"] = meridian_model->meridian_count;
-    report["model"]["rows"] = meridian_model->row_count;
-    report["model"]["texture_images"] = meridian_model->mesh.view_texture.images.size();
+
+  Expected<void> Measure() {
+    stats_ = rc::ComputeStats(mesh_);
+    nlohmann::json file_names = nlohmann::json::array();
+    for (const std::filesystem::path& f : files_) {
+      file_names.push_back(std::filesystem::relative(f, options_.out).string());
+    }
+    report_["model"] = {{"files", file_names},
+                        {"vertices", stats_.vertex_count},
+                        {"triangles", stats_.triangle_count},
+                        {"volume", stats_.volume_mm3},
+                        {"surface_area", stats_.area_mm2},
+                        {"bbox_min", Vec3Json(stats_.bbox_min_mm)},
+                        {"bbox_max", Vec3Json(stats_.bbox_max_mm)},
+                        {"dimensions", Vec3Json(stats_.bbox_max_mm - stats_.bbox_min_mm)},
+                        {"watertight", stats_.closed},
+                        {"consistently_oriented", stats_.oriented}};
+    if (meridian_model_) {
+      report_["model"]["meridians"] = meridian_model_->meridian_count;
+      report_["model"]["rows"] = meridian_model_->row_count;
+      report_["model"]["texture_images"] = meridian_model_->mesh.view_texture.images.size();
+    }
+    reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_);
+    nlohmann::json per_view =
+        JudgeViews(names_, masks_, reprojection_.iou, problems_, kMinAgreeingIoU, out_);
+    for (std::size_t i = 0; i < per_view.size(); ++i) {
+      per_view[i]["iou"] = reprojection_.iou[i];
+      per_view[i]["consensus_agreement"] = agreement_[i];
+    }
+    report_["reprojection"] = {{"mean_iou", reprojection_.mean},
+                               {"min_iou", reprojection_.min},
+                               {"worst_image", WorstName()},
+                               {"per_view", per_view}};
+    return {};
   }
-  const rc::ReprojectionStats reprojection = rc::SilhouetteReprojection(mesh, views, masks);
-  nlohmann::json per_view =
-      JudgeViews(names, masks, reprojection.iou, problems, kMinAgreeingIoU, out);
-  for (std::size_t i = 0; i < per_view.size(); ++i) {
-    per_view[i]["iou"] = reprojection.iou[i];
-    per_view[i]["consensus_agreement"] = (*agreement)[i];
+
+  const std::string& WorstName() const {
+    return names_[static_cast<std::size_t>(reprojection_.worst_view)];
   }
-  report["reprojection"] = {
-      {"mean_iou", reprojection.mean},
-      {"min_iou", reprojection.min},
-      {"worst_image", names[static_cast<std::size_t>(reprojection.worst_view)]},
-      {"per_view", per_view}};
-  times["metrics_ms"] = MsSince(t);
-  times["total_ms"] = MsSince(start);
-  report["times_ms"] = times;
-  const std::string text = report.dump(2) + "\n";
-  if (Expected<void> w = WriteFileAtomically(options.out / "report.json", std::string_view(text));
-      !w) {
-    return std::unexpected(w.error());
+
+  Expected<void> WriteReportAndSay() {
+    const std::string text = report_.dump(2) + "\n";
+    REVOLVE_RETURN_IF_ERROR(
+        WriteFileAtomically(options_.out / "report.json", std::string_view(text)));
+    const Eigen::Vector3d size = stats_.bbox_max_mm - stats_.bbox_min_mm;
+    const std::string unit = thesis_mode_ ? "px" : "units";
+    out_ << fmt::format(
+        "{}: {} triangles, {:.4g} x {:.4g} x {:.4g} {}, volume {:.4g} {}^3{}; silhouette "
+        "reprojection IoU mean {:.3f}, min {:.3f} ({})\n",
+        options_.method, stats_.triangle_count, size.x(), size.y(), size.z(), unit,
+        stats_.volume_mm3, unit, thesis_mode_ ? " (unscaled)" : "", reprojection_.mean,
+        reprojection_.min, WorstName());
+    for (const std::filesystem::path& f : files_) out_ << "  " << f.string() << "\n";
+    out_ << "  " << (options_.out / "masks").string() << "/, "
+         << (options_.out / "contact_sheet.png").string() << "\n";
+    out_ << "  " << (options_.out / "report.json").string() << "\n";
+    return {};
   }
-  const Eigen::Vector3d size = stats.bbox_max_mm - stats.bbox_min_mm;
-  const std::string unit = thesis_mode ? "px" : "units";
-  out << fmt::format(
-      "{}: {} triangles, {:.4g} x {:.4g} x {:.4g} {}, volume {:.4g} {}^3{}; silhouette "
-      "reprojection IoU mean {:.3f}, min {:.3f} ({})\n",
-      options.method, stats.triangle_count, size.x(), size.y(), size.z(), unit, stats.volume_mm3,
-      unit, thesis_mode ? " (unscaled)" : "", reprojection.mean, reprojection.min,
-      names[static_cast<std::size_t>(reprojection.worst_view)]);
-  for (const std::filesystem::path& f : *files) out << "  " << f.string() << "\n";
-  out << "  " << (options.out / "masks").string() << "/, "
-      << (options.out / "contact_sheet.png").string() << "\n";
-  out << "  " << (options.out / "report.json").string() << "\n";
-  return report;
-}
+
+  const ReconstructImagesOptions& options_;
+  std::ostream& out_;
+  const bool thesis_mode_;
+  nlohmann::json report_;
+  nlohmann::json times_;
+  bool legacy_threshold_ = false;
+  bool photos_ = false;
+  std::optional<capture::SegmentOptions> segment_options_;
+  rc::ImageSet set_;
+  std::vector<std::string> names_;
+  std::vector<cv::Mat> masks_;
+  std::vector<cv::Mat> frames_;
+  std::vector<std::string> problems_;  // per image: why it is left out, empty when usable
+  std::vector<std::size_t> usable_;
+  std::vector<View> views_;
+  Eigen::Vector3d box_min_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d box_max_ = Eigen::Vector3d::Zero();
+  std::vector<double> agreement_;
+  rc::Mesh mesh_;
+  std::optional<rc::MeridianModel> meridian_model_;
+  std::vector<std::filesystem::path> files_;
+  rc::MeshStats stats_;
+  rc::ReprojectionStats reprojection_;
+};
 
 }  // namespace
 
@@ -374,7 +421,7 @@ int RunReconstructImages(const ReconstructImagesOptions& options, std::ostream& 
     err << "revolve reconstruct: " << problem << "\n";
     return kExitUsage;
   }
-  Expected<nlohmann::json> report = Run(options, out);
+  Expected<nlohmann::json> report = ImagesRun(options, out).Run();
   if (!report) {
     Logger("station")->error("reconstruct: {}", report.error().ToString());
     err << "revolve reconstruct: " << report.error().message << "\n";
