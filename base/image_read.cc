@@ -8,6 +8,8 @@
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "base/image_verify.h"
+
 namespace revolve {
 namespace {
 
@@ -90,6 +92,10 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
                  fmt::format("is {} x {} pixels, but the other images are {} x {}",
                              header->width_px, header->height_px, options.expected_size->width,
                              options.expected_size->height));
+  }
+  // Decoded once with every warning of the format's library fatal: OpenCV prints them and goes on.
+  if (auto verified = VerifyImageData(header->format, *bytes); !verified) {
+    return Named(path, verified.error().code, verified.error().message);
   }
   cv::Mat image;
   try {
