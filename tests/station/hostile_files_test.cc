@@ -4,6 +4,8 @@
 // nan, inf, huge and negative numbers, deep nesting, non-UTF-8, very long strings) and whole
 // (empty, binary, cut short at many points). Each must answer a value or an error naming the
 // file (and the field, when one field was changed); never an exception.
+#include <sys/stat.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -300,6 +302,28 @@ TEST_P(HostileFilesTest, EveryMutantIsAValueOrAnErrorNamingTheFileNeverAnExcepti
   EXPECT_GT(refused, 10) << reader.name;
   RecordProperty("refused", refused);
   RecordProperty("accepted", accepted);
+}
+
+// A device, a FIFO or a folder where the file should be: an error naming it at once, never a
+// read that does not end (/dev/zero) or waits for a writer (a FIFO).
+TEST_P(HostileFilesTest, ADeviceAFifoOrAFolderIsRefusedAtOnce) {
+  const HostileReader reader = Readers()[static_cast<std::size_t>(GetParam())];
+  test_support::TempDir dir("revolve_special");
+  const fs::path path = dir.path() / reader.file_name;
+  const auto refused = [&](const std::string& what) {
+    std::optional<std::string> error;
+    ASSERT_NO_THROW(error = reader.read(path)) << what;
+    ASSERT_TRUE(error) << reader.name << ": " << what << " was accepted";
+    EXPECT_THAT(*error, HasSubstr(path.string())) << what;
+  };
+  fs::create_symlink("/dev/zero", path);
+  refused("a link to /dev/zero");
+  fs::remove(path);
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  refused("a FIFO");
+  fs::remove(path);
+  fs::create_directory(path);
+  refused("a folder");
 }
 
 std::string ReaderName(const testing::TestParamInfo<int>& param) {
