@@ -268,7 +268,8 @@ def digest(folder):
         for f in files:
             p = os.path.join(base, f)
             rel = os.path.relpath(p, folder)
-            if rel.startswith("model") or rel == "report.json" or os.path.islink(p):
+            if rel.startswith("model") or rel == "report.json" or os.path.islink(p) \
+                    or not os.path.isfile(p):  # a FIFO planted by a case: never opened here
                 continue
             with open(p, "rb") as fh:
                 h[rel] = hashlib.sha1(fh.read()).hexdigest()
@@ -342,6 +343,10 @@ def config_cases(revolve, work, rng, count, quick_cfg):
         path = os.path.join(d, "station.toml")
         with open(path, "w", encoding="latin-1") as f:
             f.write(text)
+        if n % 25 == 0:
+            os.remove(path)
+            os.symlink(rng.choice(["/dev/zero", "/dev/urandom"]), path)
+            what, key, must = "a link to a device", "", True
         cases.append(Case("config", what, [revolve, "check-config", path], d, ["station.toml", key],
                           must_fail=must))
         if n % 4 == 0:
@@ -385,7 +390,17 @@ def scan_cases(revolve, work, rng, count, base):
             shutil.rmtree(p, ignore_errors=True) if os.path.isdir(p) else (os.path.exists(p) and os.remove(p))
         kind = rng.random()
         names, must_fail, must_name = [], False, False
-        if kind < 0.4:
+        if kind < 0.04:
+            special = os.path.join(scan, "manifest.json")
+            os.remove(special)
+            if rng.random() < 0.5:
+                os.symlink("/dev/zero", special)
+                what = "manifest.json a link to /dev/zero"
+            else:
+                os.mkfifo(special)
+                what = "manifest.json a FIFO"
+            names = ["manifest.json"]
+        elif kind < 0.4:
             path = rng.choice(paths)
             field = str(path[-1])
             if rng.random() < 0.15:
@@ -413,8 +428,9 @@ def scan_cases(revolve, work, rng, count, base):
             choice = rng.random()
             if choice < 0.1:
                 os.remove(path)
-                os.symlink("/nonexistent/" + name, path)
-                what = "%s/%s a dangling link" % (folder, name)
+                target = rng.choice(["/nonexistent/" + name, "/dev/zero", "/dev/urandom"])
+                os.symlink(target, path)
+                what = "%s/%s a link to %s" % (folder, name, target)
                 must_name = True
             elif choice < 0.2:
                 with open(path, "wb") as f:
