@@ -17,6 +17,7 @@
 // clang-format on
 
 #include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
 
 namespace revolve {
 namespace {
@@ -98,6 +99,12 @@ struct PngContext {
   std::size_t at = 0;
   std::string message;
   std::vector<png_byte> row;
+  // DecodeVerifiedPng: the flags asked for, the image made, and whether the file is of a kind
+  // it decodes.
+  int imread_flags = cv::IMREAD_UNCHANGED;
+  cv::Mat image;
+  std::vector<png_bytep> rows;
+  bool other_kind = false;
 };
 
 void PngRead(png_structp png, png_bytep out, png_size_t length) {
@@ -139,6 +146,63 @@ bool DecodePng(png_structp png, png_infop info, PngContext& context) {
   }
   png_read_end(png, nullptr);  // on to IEND: image data left over is a complaint
   return true;
+}
+
+// Returns false with context.message set when libpng complained, or with context.other_kind
+// set when the file is not one this decodes.
+bool DecodePngPixels(png_structp png, png_infop info, PngContext& context) {
+  if (setjmp(png_jmpbuf(png)) != 0) return false;
+  png_set_read_fn(png, &context, PngRead);
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kPngSkipped,
+                              static_cast<int>(sizeof(kPngSkipped) / 5));
+  png_set_benign_errors(png, 0);
+  png_read_info(png, info);
+  const int colour = png_get_color_type(png, info);
+  const int flags = context.imread_flags;
+  if (png_get_bit_depth(png, info) != 8 || png_get_valid(png, info, PNG_INFO_tRNS) != 0 ||
+      (colour != PNG_COLOR_TYPE_GRAY && colour != PNG_COLOR_TYPE_RGB &&
+       colour != PNG_COLOR_TYPE_RGBA) ||
+      (flags == cv::IMREAD_GRAYSCALE && colour != PNG_COLOR_TYPE_GRAY)) {
+    context.other_kind = true;
+    return false;
+  }
+  int type = CV_8UC1;
+  if (colour != PNG_COLOR_TYPE_GRAY) png_set_bgr(png);
+  if (flags == cv::IMREAD_COLOR) {
+    if (colour == PNG_COLOR_TYPE_GRAY) png_set_gray_to_rgb(png);
+    if (colour == PNG_COLOR_TYPE_RGBA) png_set_strip_alpha(png);
+    type = CV_8UC3;
+  } else if (colour == PNG_COLOR_TYPE_RGB) {
+    type = CV_8UC3;
+  } else if (colour == PNG_COLOR_TYPE_RGBA) {
+    type = CV_8UC4;
+  }
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  const auto width = static_cast<int>(png_get_image_width(png, info));
+  const auto height = static_cast<int>(png_get_image_height(png, info));
+  context.image.create(height, width, type);
+  if (png_get_rowbytes(png, info) != context.image.step[0]) {
+    context.other_kind = true;  // not what the transforms promise: leave it to OpenCV
+    return false;
+  }
+  context.rows.resize(static_cast<std::size_t>(height));
+  for (int y = 0; y < height; ++y) context.rows[static_cast<std::size_t>(y)] = context.image.ptr(y);
+  png_read_image(png, context.rows.data());
+  png_read_end(png, nullptr);
+  return true;
+}
+
+// Whether a chunk of type `type` is in the PNG `b` (whose structure CheckImageBytes accepted).
+bool HasPngChunk(Bytes b, std::string_view type) {
+  for (std::size_t at = 8; at + 12 <= b.size();) {
+    const std::uint32_t length = (std::uint32_t{b[at]} << 24) | (std::uint32_t{b[at + 1]} << 16) |
+                                 (std::uint32_t{b[at + 2]} << 8) | b[at + 3];
+    if (std::string_view(reinterpret_cast<const char*>(&b[at + 4]), 4) == type) return true;
+    if (length > b.size() - at - 12) return false;
+    at += 12 + length;
+  }
+  return false;
 }
 
 Expected<void> VerifyPng(Bytes b) {
@@ -244,6 +308,26 @@ Expected<void> VerifyTiff(Bytes b) {
 }
 
 }  // namespace
+
+std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t> bytes,
+                                                   int imread_flags) {
+  if (imread_flags != cv::IMREAD_UNCHANGED && imread_flags != cv::IMREAD_COLOR &&
+      imread_flags != cv::IMREAD_GRAYSCALE) {
+    return std::nullopt;
+  }
+  if (HasPngChunk(bytes, "eXIf")) return std::nullopt;  // OpenCV may turn the picture
+  PngContext context;
+  context.bytes = bytes;
+  context.imread_flags = imread_flags;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &context, PngError, PngWarning);
+  if (png == nullptr) return MakeError(ErrorCode::kIo, "PNG: out of memory");
+  png_infop info = png_create_info_struct(png);
+  const bool ok = info != nullptr && DecodePngPixels(png, info, context);
+  png_destroy_read_struct(&png, info != nullptr ? &info : nullptr, nullptr);
+  if (ok) return std::move(context.image);
+  if (context.other_kind) return std::nullopt;
+  return Bad(ImageFormat::kPng, fmt::format("libpng fails: \"{}\"", context.message));
+}
 
 Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t> bytes) {
   switch (format) {

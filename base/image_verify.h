@@ -5,7 +5,10 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
+
+#include <opencv2/core.hpp>
 
 #include "base/error.h"
 #include "base/image_header.h"
@@ -26,5 +29,13 @@ namespace revolve {
 //   BMP, PNM: nothing more to check (their structure is checked whole by CheckImageBytes).
 // Errors: bad_input, the message naming the format and the library's complaint but not the file.
 Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t> bytes);
+
+// Decodes a PNG as VerifyImageData checks it (every libpng warning fatal) and keeps the pixels,
+// as cv::imdecode(bytes, imread_flags) would give them, in one pass; for the common kinds only:
+// 8-bit grey, RGB or RGBA, no transparency chunk, no EXIF chunk; flags IMREAD_UNCHANGED,
+// IMREAD_COLOR, or IMREAD_GRAYSCALE of a grey file. nullopt for any other file or flags: the
+// caller verifies (VerifyImageData) and decodes with OpenCV.
+std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t> bytes,
+                                                   int imread_flags);
 
 }  // namespace revolve

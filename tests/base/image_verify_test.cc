@@ -219,6 +219,39 @@ TEST_F(ImageVerifyTest, GoodImagesOfEveryFormatPass) {
   EXPECT_TRUE(VerifyImageData(ImageFormat::kJpeg, bytes));
 }
 
+// The one-pass PNG decoder gives what OpenCV gives, pixel for pixel, for every kind it takes.
+TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
+  const cv::Mat bgr = Picture(61, 47);
+  cv::Mat grey, bgra;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
+  bgra.forEach<cv::Vec4b>(
+      [](cv::Vec4b& p, const int* at) { p[3] = static_cast<uchar>(at[1] * 4); });
+  int decoded = 0;
+  for (const cv::Mat& image : {grey, bgr, bgra}) {
+    const Bytes bytes = Encode(".png", image);
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
+      const cv::Mat expected = cv::imdecode(bytes, flags);
+      const std::optional<Expected<cv::Mat>> mine = DecodeVerifiedPng(bytes, flags);
+      if (!mine) continue;  // left to OpenCV
+      ASSERT_TRUE(*mine) << (*mine).error().message;
+      ++decoded;
+      ASSERT_EQ((*mine)->type(), expected.type()) << image.channels() << " channels, " << flags;
+      ASSERT_EQ((*mine)->size(), expected.size());
+      EXPECT_EQ(cv::norm(**mine, expected, cv::NORM_INF), 0.0)
+          << image.channels() << " channels, flags " << flags;
+    }
+  }
+  EXPECT_GE(decoded, 7);  // all but RGB(A) read as grey
+  // Damage is refused as by VerifyImageData.
+  Bytes cut = Encode(".png", grey);
+  cut.resize(cut.size() - 30);
+  cut.insert(cut.end(), 30, 0);
+  const std::optional<Expected<cv::Mat>> refused = DecodeVerifiedPng(cut, cv::IMREAD_GRAYSCALE);
+  ASSERT_TRUE(refused);
+  EXPECT_FALSE(*refused);
+}
+
 // An RLE8 bitmap cut before its end-of-bitmap mark.
 TEST(ImageHeaderRle, ABmpWhoseRunLengthDataIsCutShortIsRefused) {
   Bytes bmp(54 + 1024, 0);
