@@ -3,10 +3,12 @@
 // libjpeg and libpng report errors by longjmp: every function below that calls setjmp holds
 // only trivially destructible locals, and what outlives the jump lives in a context object owned
 // by its caller.
+#include <algorithm>
 #include <csetjmp>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <vector>
 
