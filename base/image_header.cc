@@ -52,7 +52,6 @@ Expected<ImageHeader> CheckPng(Bytes b) {
   ImageHeader header{f, 0, 0, 0};
   std::uint64_t idat_bytes = 0;
   int bit_depth = 0;
-  bool interlaced = false;
   std::size_t at = kPngSignature.size();
   bool first = true;
   while (true) {
@@ -83,7 +82,6 @@ Expected<ImageHeader> CheckPng(Bytes b) {
       header.height_px = Be32(b, data + 4);
       bit_depth = b[data + 8];
       const int colour = b[data + 9];
-      interlaced = b[data + 12] != 0;
       switch (colour) {
         case 0:
           header.channels = 1;
@@ -122,7 +120,8 @@ Expected<ImageHeader> CheckPng(Bytes b) {
   const std::uint64_t row_bytes =
       (static_cast<std::uint64_t>(header.width_px) * header.channels * bit_depth + 7) / 8 + 1;
   const std::uint64_t raw_bytes = row_bytes * static_cast<std::uint64_t>(header.height_px);
-  if (!interlaced && idat_bytes * 1100 + 4096 < raw_bytes) {
+  // (Interlaced data holds a few more filter bytes than this: the bound holds for it too.)
+  if (idat_bytes * 1100 + 4096 < raw_bytes) {
     return Bad(f, fmt::format("{} bytes of image data cannot hold the {} x {} pixels the header "
                               "claims (a damaged or crafted file)",
                               idat_bytes, header.width_px, header.height_px));
@@ -205,7 +204,9 @@ Expected<ImageHeader> CheckJpeg(Bytes b) {
   // Huffman coding spends at least one bit on each 8 x 8 block of the first component.
   const std::uint64_t blocks = static_cast<std::uint64_t>((header.width_px + 7) / 8) *
                                static_cast<std::uint64_t>((header.height_px + 7) / 8);
-  if (!IsArithmetic(*sof) && entropy_bytes * 8 < blocks) {
+  // Arithmetic coding adapts to long runs of empty blocks, but nothing real spends less than a
+  // bit on 32 of them.
+  if (IsArithmetic(*sof) ? entropy_bytes * 8 * 32 < blocks : entropy_bytes * 8 < blocks) {
     return Bad(f, fmt::format("{} bytes of image data cannot hold the {} x {} pixels the header "
                               "claims (a damaged or crafted file)",
                               entropy_bytes, header.width_px, header.height_px));
@@ -244,6 +245,54 @@ class TiffReader {
   bool little_;
 };
 
+// The strips (or tiles) must hold the pixels the header claims: all of them when uncompressed,
+// and no more than each compression can pack into a byte (deflate about 1032:1, LZW with 12-bit
+// codes about 1365:1, PackBits 64:1, JPEG at least one bit per 8 x 8 block).
+Expected<void> CheckTiffDataSize(const ImageHeader& header, std::uint64_t bits,
+                                 std::uint64_t compression,
+                                 const std::vector<std::uint64_t>& byte_counts) {
+  constexpr ImageFormat f = ImageFormat::kTiff;
+  std::uint64_t stored = 0;
+  for (const std::uint64_t n : byte_counts) stored += n;
+  const auto width = static_cast<std::uint64_t>(header.width_px);
+  const auto height = static_cast<std::uint64_t>(header.height_px);
+  const std::uint64_t raw =
+      (width * static_cast<std::uint64_t>(header.channels) * bits + 7) / 8 * height;
+  std::uint64_t ratio = 0;  // the most pixel bytes one stored byte can give; 0: no bound known
+  switch (compression) {
+    case 1:
+      ratio = 1;
+      break;
+    case 5:
+      ratio = 1400;
+      break;
+    case 8:
+    case 32946:
+      ratio = 1100;
+      break;
+    case 32773:
+      ratio = 64;
+      break;
+    case 7:  // one bit a block is 512 pixels a byte, so 512 samples of at most 8 bits
+      ratio = 512 * static_cast<std::uint64_t>(header.channels);
+      break;
+    default:  // CCITT fax and the rest: nothing real packs a thousand pixel bytes into one
+      ratio = 1000;
+      break;
+  }
+  if (compression == 1 && stored < raw) {
+    return Bad(f, fmt::format("the strips hold {} bytes, but {} x {} uncompressed pixels of {} "
+                              "bits need {} (cut short or damaged)",
+                              stored, width, height, bits * header.channels, raw));
+  }
+  if (ratio != 0 && stored * ratio + 4096 < raw) {
+    return Bad(f, fmt::format("{} bytes of image data cannot hold the {} x {} pixels the header "
+                              "claims (a damaged or crafted file)",
+                              stored, width, height));
+  }
+  return {};
+}
+
 Expected<ImageHeader> CheckTiff(Bytes b, bool little) {
   constexpr ImageFormat f = ImageFormat::kTiff;
   const TiffReader r(b, little);
@@ -252,22 +301,26 @@ Expected<ImageHeader> CheckTiff(Bytes b, bool little) {
   const std::size_t ifd = r.U32(4);
   if (ifd < 8 || ifd + 2 > b.size()) return Bad(f, "the file is cut short (no image directory)");
   const std::size_t count = r.U16(ifd);
-  if (ifd + 2 + count * 12 > b.size()) {
+  if (ifd + 2 + count * 12 + 4 > b.size()) {  // the entries and the next directory's offset
     return Bad(f, "the file is cut short (the image directory runs past its end)");
   }
   ImageHeader header{f, 0, 0, 1};
   std::vector<std::uint64_t> offsets, byte_counts;
+  std::uint64_t bits = 1;
+  std::uint64_t compression = 1;
   for (std::size_t i = 0; i < count; ++i) {
     const std::size_t entry = ifd + 2 + i * 12;
     const std::uint16_t tag = r.U16(entry);
-    if (tag != 256 && tag != 257 && tag != 277 && tag != 273 && tag != 279 && tag != 324 &&
-        tag != 325) {
+    if (tag != 256 && tag != 257 && tag != 258 && tag != 259 && tag != 277 && tag != 273 &&
+        tag != 279 && tag != 324 && tag != 325) {
       continue;
     }
     auto values = r.Values(entry);
     if (!values) return Bad(f, fmt::format("damaged: tag {} lies outside the file", tag));
     if (tag == 256) header.width_px = static_cast<std::int64_t>(values->front());
     if (tag == 257) header.height_px = static_cast<std::int64_t>(values->front());
+    if (tag == 258) bits = std::min<std::uint64_t>(values->front(), 64);
+    if (tag == 259) compression = values->front();
     if (tag == 277)
       header.channels = static_cast<int>(std::min<std::uint64_t>(values->front(), 64));
     if (tag == 273 || tag == 324) offsets = std::move(*values);
@@ -283,10 +336,48 @@ Expected<ImageHeader> CheckTiff(Bytes b, bool little) {
                                 i + 1, offsets.size()));
     }
   }
+  if (auto enough = CheckTiffDataSize(header, bits, compression, byte_counts); !enough) {
+    return std::unexpected(enough.error());
+  }
   return header;
 }
 
 // ---- BMP --------------------------------------------------------------------------------------
+
+// Walks run-length coded pixels (RLE8, or RLE4 when `four_bit`) from `at` to their
+// end-of-bitmap mark, which a whole file has; the runs and literal pixels must code every one of
+// `pixels` (skips by delta or an early end leave pixels the decoder makes up, and let a tiny file
+// claim any size).
+Expected<void> CheckBmpRle(Bytes b, std::size_t at, bool four_bit, std::uint64_t pixels) {
+  constexpr ImageFormat f = ImageFormat::kBmp;
+  std::uint64_t coded = 0;
+  while (at + 2 <= b.size()) {
+    const std::uint8_t count = b[at];
+    const std::uint8_t value = b[at + 1];
+    at += 2;
+    if (count != 0) {  // a run
+      coded += count;
+      continue;
+    }
+    if (value == 1) {  // end of bitmap
+      if (coded < pixels) {
+        return Bad(f, fmt::format("damaged: its run-length data codes {} of the {} pixels the "
+                                  "header claims",
+                                  coded, pixels));
+      }
+      return {};
+    }
+    if (value == 0) continue;  // end of line
+    if (value == 2) {          // delta
+      at += 2;
+      continue;
+    }
+    coded += value;
+    const std::size_t literal = four_bit ? (value + 1u) / 2 : value;
+    at += (literal + 1) / 2 * 2;  // absolute mode, padded to a word
+  }
+  return Bad(f, "the file is cut short (its run-length data has no end-of-bitmap mark)");
+}
 
 Expected<ImageHeader> CheckBmp(Bytes b) {
   constexpr ImageFormat f = ImageFormat::kBmp;
@@ -314,6 +405,13 @@ Expected<ImageHeader> CheckBmp(Bytes b) {
   }
   header.channels = bits <= 8 ? 1 : bits == 32 ? 4 : 3;
   if (auto sized = CheckSize(header); !sized) return sized;
+  if (compression == 1 || compression == 2) {
+    if (auto whole = CheckBmpRle(b, pixels_at, compression == 2,
+                                 static_cast<std::uint64_t>(header.pixels()));
+        !whole) {
+      return std::unexpected(whole.error());
+    }
+  }
   if (compression == 0 || compression == 3) {
     const std::uint64_t row = (static_cast<std::uint64_t>(header.width_px) * bits + 31) / 32 * 4;
     if (pixels_at > b.size() ||

@@ -31,12 +31,18 @@ struct ImageHeader {
 // - JPEG: SOI, every marker segment complete, a frame header (SOFn) before the first scan, the
 //   entropy-coded data of every scan ended by a marker, an EOI marker (a file cut short has
 //   none: libjpeg would only warn "Premature end of JPEG file" and decode grey);
-// - TIFF (classic): the first IFD inside the file with ImageWidth and ImageLength, and every
-//   strip or tile (offset + byte count) inside the file;
-// - BMP: the headers, and the pixel rows of an uncompressed bitmap inside the file;
+// - TIFF (classic): the first IFD inside the file with ImageWidth and ImageLength, every
+//   strip or tile (offset + byte count) inside the file, and strips that hold the pixels:
+//   all their bytes when uncompressed, no more than the compression can pack when compressed
+//   (LZW 1400:1, deflate 1100:1, PackBits 64:1, JPEG, any other 1000:1);
+// - BMP: the headers, the pixel rows of an uncompressed bitmap inside the file, and the
+//   run-length data of an RLE4/RLE8 one coding every pixel and ending with its end-of-bitmap
+//   mark;
 // - PNM (P1..P6): the header, and the samples of a binary one inside the file;
-// and, for PNG and Huffman-coded JPEG, compressed data large enough for the size the header
-// claims (a 2 kB file cannot hold 20000 x 20000 pixels: it is damaged or crafted).
+// and, for PNG and JPEG, compressed data large enough for the size the header claims (a 2 kB
+// file cannot hold 20000 x 20000 pixels: it is damaged or crafted): deflate packs at most about
+// 1032 bytes into one, Huffman coding spends at least a bit on each 8 x 8 block, arithmetic
+// coding a bit on 32 blocks.
 // Width and height are at least 1. Errors: bad_input, the message naming the format and what is
 // wrong but not the file (the caller knows its name); unsupported for another format.
 Expected<ImageHeader> CheckImageBytes(std::span<const std::uint8_t> bytes);

@@ -8,6 +8,8 @@
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "base/image_verify.h"
+
 namespace revolve {
 namespace {
 
@@ -92,10 +94,24 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
                              options.expected_size->height));
   }
   cv::Mat image;
-  try {
-    image = cv::imdecode(*bytes, options.imread_flags);
-  } catch (const cv::Exception& e) {
-    return Named(path, ErrorCode::kBadInput, fmt::format("cannot decode: {}", e.what()));
+  // The common PNGs (masks, frames) are decoded once, strictly.
+  if (header->format == ImageFormat::kPng) {
+    if (auto decoded = DecodeVerifiedPng(*bytes, options.imread_flags)) {
+      if (!*decoded) return Named(path, decoded->error().code, decoded->error().message);
+      image = std::move(**decoded);
+    }
+  }
+  if (image.empty()) {
+    // Decoded once with every warning of the format's library fatal: OpenCV prints them and
+    // goes on; then by OpenCV.
+    if (auto verified = VerifyImageData(header->format, *bytes); !verified) {
+      return Named(path, verified.error().code, verified.error().message);
+    }
+    try {
+      image = cv::imdecode(*bytes, options.imread_flags);
+    } catch (const cv::Exception& e) {
+      return Named(path, ErrorCode::kBadInput, fmt::format("cannot decode: {}", e.what()));
+    }
   }
   if (image.empty()) {
     return Named(path, ErrorCode::kBadInput,

@@ -36,8 +36,9 @@ Expected<ImageHeader> ReadImageHeader(const std::filesystem::path& path,
 
 // Reads and decodes `path` after ReadImageHeader's checks and the expected size; the decoded
 // image has the header's size. Errors as ReadImageHeader, plus bad_input naming the file when
-// the size differs from `expected_size` or the decoder refuses the data. Peak memory: the file's
-// bytes plus one decoded image.
+// the size differs from `expected_size`, or the decoder refuses the data or only warns about it
+// (base/image_verify.h: every libjpeg, libpng and libtiff warning is an error). Peak memory: the
+// file's bytes plus one decoded image.
 Expected<cv::Mat> ReadImageFile(const std::filesystem::path& path,
                                 const ImageReadOptions& options = {});
 

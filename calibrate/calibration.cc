@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "base/atomic_file.h"
+#include "base/text_file.h"
 #include "config/config.h"
 
 #ifndef REVOLVE_VERSION
@@ -298,14 +299,13 @@ Expected<Calibration> LoadCalibration(const std::filesystem::path& path) {
                                  "calibrate`, or fix [calibration] file in the config)",
                                  path.string()));
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in || std::filesystem::is_directory(path, ec)) {
-    return MakeError(ErrorCode::kIo,
-                     fmt::format("{}: cannot read the calibration file", path.string()));
+  // A calibration file is a few kB; a device or FIFO is refused, never read.
+  auto text = ReadRegularFile(path, std::uintmax_t{1} << 20);
+  if (!text) {
+    return MakeError(text.error().code,
+                     fmt::format("{} (expected a calibration file)", text.error().message));
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseCalibration(text.str(), path.string());
+  return ParseCalibration(std::move(*text), path.string());
 }
 
 }  // namespace revolve::calibrate

@@ -7,7 +7,9 @@
 #include <utility>
 
 #include <fmt/format.h>
+
 #include <fmt/ranges.h>
+#include "base/text_file.h"
 
 namespace revolve::config {
 namespace {
@@ -73,14 +75,13 @@ Expected<Document> LoadFile(const std::filesystem::path& path) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{}: is a directory, expected a TOML config file", path.string()));
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return MakeError(ErrorCode::kIo,
-                     fmt::format("{}: cannot read the config file (permissions?)", path.string()));
+  // 16 MB is far more than any configuration; a device or FIFO is refused, never read.
+  auto text = ReadRegularFile(path, std::uintmax_t{16} << 20);
+  if (!text) {
+    return MakeError(text.error().code,
+                     fmt::format("{} (expected a TOML config file)", text.error().message));
   }
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return Parse(buffer.str(), path.string());
+  return Parse(std::move(*text), path.string());
 }
 
 Section::Section(const Document& document, std::string path, const toml::table* table)

@@ -362,11 +362,22 @@ class Daemon::Impl {
     // The camera and segmenter of this scan's configuration (a recipe may change them), before
     // a new folder is made.
     devices_.captures = captures_;
-    if (auto camera = ReopenCamera(job->config, devices_); !camera) {
-      devices_ok_ = false;
-      devices_error_ = "camera: " + camera.error().message;
-      return MakeError(ErrorCode::kNoDevice, devices_error_);
+    // Probed as `revolve scan` does: a camera that cannot stream (unplugged, held) refuses the
+    // start before a folder is made (no_device, or busy when another program holds it).
+    auto camera = ReopenCamera(job->config, devices_);
+    if (camera) {
+      if (auto started = devices_.camera->Start(); !started)
+        camera = std::unexpected(started.error());
     }
+    if (!camera) {
+      devices_ok_ = false;
+      devices_error_ = fmt::format("camera: {} (check [camera] in {})", camera.error().message,
+                                   job->config.origin);
+      return MakeError(
+          camera.error().code == ErrorCode::kBusy ? ErrorCode::kBusy : ErrorCode::kNoDevice,
+          devices_error_);
+    }
+    devices_.camera->Stop();
     if (!resume) {
       job->id = UniqueScanId();
       job->dir = scans_dir_ / job->id;

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
+#include "base/text_file.h"
 #include "station/manifest.h"
 
 namespace revolve::station {
@@ -86,14 +87,14 @@ Expected<void> ScanFolder::WriteJson(const std::string& relative,
 
 Expected<nlohmann::json> ReadManifest(const std::filesystem::path& dir) {
   const std::filesystem::path path = dir / "manifest.json";
-  std::ifstream in(path);
-  if (!in) {
-    return MakeError(ErrorCode::kNotFound,
-                     fmt::format("{}: cannot read (not a scan folder?)", path.string()));
+  // At most kMaxManifestStops stops of a few hundred bytes; a device or FIFO is refused.
+  auto text = ReadRegularFile(path, std::uintmax_t{64} << 20);
+  if (!text) {
+    return MakeError(
+        text.error().code == ErrorCode::kBadInput ? ErrorCode::kBadInput : ErrorCode::kNotFound,
+        fmt::format("{} (not a scan folder?)", text.error().message));
   }
-  std::stringstream text;
-  text << in.rdbuf();
-  nlohmann::json manifest = nlohmann::json::parse(text.str(), nullptr, false);
+  nlohmann::json manifest = nlohmann::json::parse(*text, nullptr, false);
   if (manifest.is_discarded() || !manifest.is_object()) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{}: not a JSON object (damaged manifest)", path.string()));

@@ -35,7 +35,12 @@ class LibcameraCamera final : public Camera {
       return MakeError(ErrorCode::kIo, fmt::format("libcamera: CameraManager::start: {}", r));
     }
     const auto cameras = manager_->cameras();
-    if (cameras.empty()) return MakeError(ErrorCode::kNoDevice, "libcamera: no cameras");
+    if (cameras.empty()) {
+      return MakeError(ErrorCode::kNoDevice,
+                       options_.camera.empty()
+                           ? std::string("libcamera: no cameras")
+                           : fmt::format("libcamera: no cameras (so no \"{}\")", options_.camera));
+    }
     camera_ = options_.camera.empty() ? cameras.front() : manager_->get(options_.camera);
     if (!camera_) {
       return MakeError(ErrorCode::kNoDevice,

@@ -10,6 +10,8 @@
 #include <Eigen/LU>
 #include <Eigen/QR>
 
+#include "base/text_file.h"
+
 namespace revolve::reconstruct {
 namespace {
 
@@ -157,23 +159,17 @@ Expected<CameraFile> ParseCameraFile(std::string_view text, std::string origin) 
 
 Expected<CameraFile> ReadCameraFile(const std::filesystem::path& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
+  if (!std::filesystem::exists(path, ec)) {
     return MakeError(ErrorCode::kNotFound, fmt::format("{}: camera file not found", path.string()));
   }
-  // A line is at most a few hundred bytes: 64 MB holds far more views than any data set.
-  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{64} << 20;
-  if (const std::uintmax_t size = std::filesystem::file_size(path, ec); !ec && size > kMaxBytes) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("{}: {} MB is too large for a camera file (at most {} MB)",
-                                 path.string(), size >> 20, kMaxBytes >> 20));
+  // A line is at most a few hundred bytes: 64 MB holds far more views than any data set. A
+  // device or FIFO is refused, never read.
+  auto text = ReadRegularFile(path, std::uintmax_t{64} << 20);
+  if (!text) {
+    return MakeError(text.error().code,
+                     fmt::format("{} (expected a camera file)", text.error().message));
   }
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (!in && !in.eof()) {
-    return MakeError(ErrorCode::kIo, fmt::format("{}: cannot be read", path.string()));
-  }
-  return ParseCameraFile(text.str(), path.string());
+  return ParseCameraFile(*text, path.string());
 }
 
 Expected<std::vector<View>> ViewsForImages(const CameraFile& file,

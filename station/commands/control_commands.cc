@@ -53,6 +53,8 @@ int ReportRefusal(const nlohmann::json& reply, std::string_view what, std::ostre
   const std::string code = error.is_object() ? error.value("code", "") : "";
   fmt::print(err, "revolve {}: {} ({})\n", what,
              error.is_object() ? error.value("message", "refused") : "refused", code);
+  // A missing device is a configuration error whatever the backend, as for `revolve scan`.
+  if (code == "no_device") return kExitConfig;
   return code == "busy" ? kExitBusy : kExitFailed;
 }
 

@@ -75,8 +75,12 @@ Result<ScanCameras> LoadScanCameras(const fs::path& dir) {
   auto stops = ReadSavedStops(dir, *manifest, false, &skipped);
   if (!stops) return std::unexpected(Fail(kExitFailed, stops.error().message));
   if (stops->empty()) {
-    return std::unexpected(
-        Fail(kExitFailed, fmt::format("{}: no stop with a readable mask", dir.string())));
+    return std::unexpected(Fail(
+        kExitFailed,
+        skipped.empty() ? fmt::format("{}: stops: lists no stop (nothing was captured): nothing to "
+                                      "export",
+                                      (dir / "manifest.json").string())
+                        : fmt::format("{}: no stop with a readable mask", dir.string())));
   }
   ScanCameras result;
   for (SavedStop& stop : *stops) {

@@ -106,7 +106,15 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
   }
   for (const std::string& s : skipped) fmt::print(err, "revolve reconstruct: skipped {}\n", s);
   if (stops->empty()) {
-    fmt::print(err, "revolve reconstruct: {}: no stop with a readable mask\n", dir.string());
+    if (skipped.empty()) {
+      fmt::print(err,
+                 "revolve reconstruct: {}: stops: lists no stop (nothing was captured): nothing "
+                 "to reconstruct\n",
+                 (dir / "manifest.json").string());
+    } else {
+      fmt::print(err, "revolve reconstruct: {}: no stop with a readable mask (see above)\n",
+                 dir.string());
+    }
     return kExitFailed;
   }
   // The masks against the camera of scan.toml (or the calibration): another size would carve

@@ -134,6 +134,30 @@ TEST_F(BadInputTest, AMissingCameraExits78AndCreatesNothing) {
   }
 }
 
+// A missing drive too: Modbus on a serial port that is not there, GPIO on a chip that is not.
+TEST_F(BadInputTest, AMissingDriveExits78AndCreatesNothing) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"/dev/ttyREVOLVE_missing",
+       "[turntable]\nbackend = \"modbus\"\n[turntable.modbus]\nport = "
+       "\"/dev/ttyREVOLVE_missing\"\n"},
+      {"revolve-missing-chip",
+       "[turntable]\nbackend = \"gpio\"\n[turntable.gpio]\nchip = \"revolve-missing-chip\"\nstep = "
+       "17\ndir = 27\n"},
+  };
+  int n = 0;
+  for (const auto& [device, text] : cases) {
+    const fs::path config = dir_ / fmt::format("drive{}.toml", n);
+    WriteText(config, text);
+    const fs::path out = dir_ / fmt::format("out_drive{}", n++);
+    const RunResult r =
+        Revolve("scan --config " + config.string() + " --out " + out.string(), dir_);
+    if (r.err.find("not in this build") != std::string::npos) continue;
+    EXPECT_EQ(r.exit_code, kExitConfig) << device << ": " << r.err;
+    EXPECT_THAT(r.err, HasSubstr(device));
+    EXPECT_FALSE(fs::exists(out)) << device;
+  }
+}
+
 // ---- A scan folder read back ----------------------------------------------------------------
 
 constexpr char kQuickScan[] = R"(

@@ -746,5 +746,40 @@ TEST_F(DaemonE2eTest, ResumingACompleteScanIsRefused) {
   EXPECT_EQ(ReadAll(manifest), before);  // nothing touched
 }
 
+// A missing device refuses `revolve start` as `revolve scan` refuses it: exit 78, the device
+// named, no scan folder made, whatever the backend; revolved itself keeps serving (status says
+// what is missing, so the device can be plugged in and the start tried again).
+TEST_F(DaemonE2eTest, AMissingDeviceRefusesTheStartWith78AndCreatesNothing) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"/dev/video_revolve_missing",
+       "[camera]\nbackend = \"v4l2\"\n[camera.v4l2]\ndevice = \"/dev/video_revolve_missing\"\n"},
+      {"revolve-missing-camera",
+       "[camera]\nbackend = \"libcamera\"\n[camera.libcamera]\ncamera = "
+       "\"revolve-missing-camera\"\n"},
+      {"no_such_replay_folder",
+       "[camera]\nbackend = \"replay\"\n[camera.replay]\ndir = \"no_such_replay_folder\"\n"},
+      {"/dev/ttyREVOLVE_missing",
+       "[turntable]\nbackend = \"modbus\"\n[turntable.modbus]\nport = "
+       "\"/dev/ttyREVOLVE_missing\"\n"},
+      {"revolve-missing-chip",
+       "[turntable]\nbackend = \"gpio\"\n[turntable.gpio]\nchip = \"revolve-missing-chip\"\nstep = "
+       "17\ndir = 27\n"},
+  };
+  for (const auto& [device, extra] : cases) {
+    SCOPED_TRACE(device);
+    StartDaemon(WriteConfig(Config(extra), "missing.toml"));
+    if (HasFatalFailure()) return;
+    const CommandResult start = Cli({"start", "--recipe", "tiny"});
+    if (Contains(start.err, "not in this build")) continue;
+    EXPECT_EQ(start.exit_code, 78) << start.out << start.err;
+    EXPECT_TRUE(Contains(start.err, device)) << start.err;
+    EXPECT_FALSE(Contains(start.err, "internal error")) << start.err;
+    std::error_code ec;
+    EXPECT_TRUE(fs::is_empty(dir_ / "scans", ec)) << "a scan folder was left behind";
+    EXPECT_FALSE(Status()["devices"]["ok"].get<bool>());
+    daemon_.Kill();
+  }
+}
+
 }  // namespace
 }  // namespace revolve::e2e

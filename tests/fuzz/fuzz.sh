@@ -17,7 +17,7 @@ while [ $# -gt 0 ]; do
     *) targets+=("$1"); shift ;;
   esac
 done
-[ ${#targets[@]} -gt 0 ] || targets=(config cameras manifest protocol image_header)
+[ ${#targets[@]} -gt 0 ] || targets=(config cameras manifest protocol image_header image_decode calibration)
 
 if ! command -v clang++-16 >/dev/null; then
   echo "fuzz: clang++-16 not found (apt-get install clang-16 libfuzzer-16-dev): skipped" >&2

@@ -1,0 +1,32 @@
+// Fuzzes what an image file goes through before OpenCV may decode it: the header check, then a
+// decode to the end with libjpeg, libpng or libtiff where every warning is an error
+// (base/image_verify.h). No input may crash, leak, read out of bounds or hang.
+#include <cstdint>
+#include <cstdlib>
+#include <span>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "base/image_header.h"
+#include "base/image_verify.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::span<const std::uint8_t> bytes(data, size);
+  auto header = revolve::CheckImageBytes(bytes);
+  // The decoders run only on files within a small size here, so that a run stays fast.
+  if (!header || header->pixels() > 4'000'000) return 0;
+  const bool verified = revolve::VerifyImageData(header->format, bytes).has_value();
+  if (header->format == revolve::ImageFormat::kPng) {
+    // The one-pass decoder agrees with the check, and gives the header's size.
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
+      auto decoded = revolve::DecodeVerifiedPng(bytes, flags);
+      if (!decoded) continue;
+      if (decoded->has_value() != verified) std::abort();
+      if (*decoded &&
+          ((*decoded)->cols != header->width_px || (*decoded)->rows != header->height_px)) {
+        std::abort();
+      }
+    }
+  }
+  return 0;
+}
