@@ -31,6 +31,8 @@ namespace rc = revolve::reconstruct;
 
 // A view whose mask reprojects below this IoU against the model is flagged in report.json.
 constexpr double kMinAgreeingIoU = 0.9;
+// --bbox coordinates beyond this are refused (a million pixels or metres is no turntable).
+constexpr double kMaxBoxCoordinate = 1e6;
 
 // An option out of range: the message, or empty when the options are usable.
 std::string CheckOptions(const ReconstructImagesOptions& options) {
@@ -67,6 +69,15 @@ std::string CheckOptions(const ReconstructImagesOptions& options) {
     }
     if (!(b[0] < b[3] && b[1] < b[4] && b[2] < b[5])) {
       return "--bbox X0 Y0 Z0 X1 Y1 Z1: expected X0 < X1, Y0 < Y1 and Z0 < Z1";
+    }
+    // A box a voxel grid cannot span (its size overflows or its cells are astronomical) is a
+    // typing error, not a carving volume.
+    if (!std::all_of(b.begin(), b.end(),
+                     [](double v) { return std::abs(v) <= kMaxBoxCoordinate; })) {
+      return fmt::format(
+          "--bbox X0 Y0 Z0 X1 Y1 Z1: expected coordinates within +-{:g} (the "
+          "cameras file's units, or pixels without one)",
+          kMaxBoxCoordinate);
     }
   }
   return {};
@@ -421,8 +432,16 @@ int RunReconstructImages(const ReconstructImagesOptions& options, std::ostream& 
     err << "revolve reconstruct: " << problem << "\n";
     return kExitUsage;
   }
+  std::error_code ec;
+  const bool out_existed = std::filesystem::exists(options.out, ec);
   Expected<nlohmann::json> report = ImagesRun(options, out).Run();
   if (!report) {
+    // A refused run leaves no empty folder behind; what it did write (the masks, for a person
+    // to check why) stays. remove() deletes only empty folders.
+    if (!out_existed) {
+      std::filesystem::remove(options.out / "model", ec);
+      std::filesystem::remove(options.out, ec);
+    }
     Logger("station")->error("reconstruct: {}", report.error().ToString());
     err << "revolve reconstruct: " << report.error().message << "\n";
     return kExitFailed;

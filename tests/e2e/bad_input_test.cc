@@ -392,6 +392,22 @@ TEST_F(BadInputTest, ATruncatedJpegAmongTheImagesIsNamed) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.exit_code, kExitSoftware);
   EXPECT_THAT(r.err, HasSubstr("view_005.jpg: JPEG: the file is cut short"));
+  // Refused before anything was written: no empty output folder is left behind.
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
+}
+
+// A box no voxel grid can span is a typing error, refused before any work.
+TEST_F(BadInputTest, AnAbsurdBoxIsRefused) {
+  const fs::path images = dir_ / "views";
+  WriteViews(images, ".png");
+  const RunResult r =
+      Revolve("reconstruct --images " + images.string() +
+                  " --step-deg 45 --bbox 0 0 0 1e308 1e308 1e308 --out " + (dir_ / "o").string(),
+              dir_);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, kExitSoftware);
+  EXPECT_THAT(r.err, HasSubstr("--bbox"));
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
 }
 
 TEST_F(BadInputTest, ADanglingSymlinkAmongTheImagesIsNamed) {
