@@ -20,11 +20,14 @@ struct GraphCutOptions {
   // The graph cut runs on a copy whose longer side is at most this (speed: grabCut's cost grows
   // with the pixel count); the edge is then placed at full size. 0: full size.
   int max_side_px = 320;
-  int iterations = 4;
+  int iterations = 3;  // of the colour cut (capture/segment/colour_cut.h)
   // Pixels of the image's outline ring (this fraction of the shorter side) that are not
   // object for sure seed the backdrop: whatever touches the frame's edge below the object level
   // (a stand, a cloth) teaches the backdrop model its colour.
   double border_fraction = 0.02;
+  // Undecided pixels farther than this fraction of the reduced copy's longer side from every
+  // sure object pixel are backdrop (the object is what its sure core reaches; 24 px at 320).
+  double reach_fraction = 0.075;
 };
 
 // The trimap as grabCut labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the
@@ -35,13 +38,25 @@ struct GraphCutOptions {
 cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
                         const GraphCutOptions& options);
 
-// The refined mask (CV_8UC1, 0/255) of `bgr` (CV_8UC3) from `trimap` (TrimapFromScore): grabCut
-// on the reduced copy, the result scaled up, and in a band of the scale's width around its edge
-// each pixel decided by `score` against the mean of the local object and backdrop scores (the
-// edge at half contrast). When the graph cut cannot run (no object or no backdrop seed), the
-// trimap's object labels (GC_FGD, GC_PR_FGD) are returned.
+// The refined mask (CV_8UC1, 0/255) of `bgr` (CV_8UC3) from `trimap` (TrimapFromScore): the colour
+// cut (CutByColour) on the reduced copy, the result scaled up, and in a band of the scale's width
+// around its edge each pixel decided by `score` against the mean of the local object and backdrop
+// scores (the edge at half contrast). When the graph cut cannot run (no object or no backdrop
+// seed), the trimap's object labels (GC_FGD, GC_PR_FGD) are returned.
 cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::Mat& trimap,
                            const GraphCutOptions& options);
+
+// Where the edge of `mask` (CV_8UC1, 0/255) lies in `score` (CV_8UC1): for each pixel within
+// `radius_px` of the edge, the level 35 % of the way from the mean score of the backdrop pixels
+// nearby (outside the mask by more than radius_px) to that of the object pixels nearby (inside by
+// more than radius_px), in a window of 4 radius_px + 3; -1 elsewhere or where one side has no
+// pixel in the window. CV_32FC1 of the mask's size.
+cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px);
+
+// `mask` with every pixel that has an edge level (EdgeLevels) decided again: object when its
+// score reaches the level. The object's rim (pixels it partly covers) stays in, as a carved
+// hull needs.
+cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px);
 
 // Fills the holes of `mask` (background regions not 4-connected to the border) except those
 // whose median score is at or below `backdrop_level` and that hold more than `min_open_px`

@@ -20,6 +20,8 @@ constexpr double kStillGain = 0.1;
 constexpr int kMinStillFrames = 4;
 constexpr int kLearnMarginPx = 4;
 constexpr double kMaxObjectShare = 0.6;
+constexpr std::size_t kMinViewsForAreaCheck = 3;
+constexpr double kMinAreaShare = 0.2;
 
 template <class T>
 T Median(std::vector<T>& values) {
@@ -68,6 +70,25 @@ std::string ProblemOf(const cv::Mat& mask) {
         100.0 * outline);
   }
   return {};
+}
+
+// A mask far smaller than the set's others (a fold of the cloth in a frame without the object,
+// or a piece of the object) carves the whole model down to itself: it is named, and left out.
+void FlagSmallMasks(const std::vector<cv::Mat>& masks, std::vector<std::string>& problems) {
+  std::vector<int> areas;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (problems[i].empty()) areas.push_back(cv::countNonZero(masks[i]));
+  }
+  if (areas.size() < kMinViewsForAreaCheck) return;
+  const double median = Median(areas);
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    const int area = cv::countNonZero(masks[i]);
+    if (!problems[i].empty() || area >= kMinAreaShare * median) continue;
+    problems[i] = fmt::format(
+        "its mask holds {} px, {:.0f} % of the median view's {:.0f} px: probably a patch of the "
+        "backdrop or only a part of the object",
+        area, 100.0 * area / median, median);
+  }
 }
 
 Expected<cv::Mat> ReadBackground(const SegmentOptions& options, cv::Size size) {
@@ -250,6 +271,7 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   if (!masks) return std::unexpected(masks.error());
   result.masks = std::move(*masks);
   for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));
+  FlagSmallMasks(result.masks, result.problems);
   return result;
 }
 

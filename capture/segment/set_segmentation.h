@@ -52,7 +52,8 @@ struct SetSegmentation {
 // learned from those masks (LearnBackdrop) and background with refinement; otherwise graphcut.
 // Any other method runs as configured (background without background_file learns the backdrop
 // as auto does). A frame's problem: no object found; the object covers over 60 % of the frame;
-// the object touches the frame's edge on more than half of its outline. Errors: bad_input for
+// the object touches the frame's edge on more than half of its outline; the mask is under 20 %
+// of the median area of the set's other masks (3 or more). Errors: bad_input for
 // invalid options or frames, or background_file unreadable or of another size (naming it).
 Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
                                           const SegmentOptions& options);
