@@ -465,21 +465,31 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
   const bool per_pixel = backdrop_bgr.size() == bgr.size();
   cv::Mat out(bgr.size(), CV_8UC1);
   for (int y = 0; y < bgr.rows; ++y) {
-    const auto* p = bgr.ptr<cv::Vec3b>(y);
-    const auto* b = backdrop_bgr.ptr<cv::Vec3b>(per_pixel ? y : 0);
+    const auto* p = bgr.ptr<std::uint8_t>(y);
+    const auto* b = backdrop_bgr.ptr<std::uint8_t>(per_pixel ? y : 0);
     auto* o = out.ptr<std::uint8_t>(y);
+    if (!shadows) {  // the common case, kept free of branches
+      const int step = per_pixel ? 3 : 0;
+      for (int x = 0; x < bgr.cols; ++x) {
+        const std::uint8_t* k = b + step * x;
+        const int d0 = p[3 * x] - k[0], d1 = p[3 * x + 1] - k[1], d2 = p[3 * x + 2] - k[2];
+        o[x] = root[static_cast<std::size_t>(std::min(d0 * d0 + d1 * d1 + d2 * d2, kMaxSquare))];
+      }
+      continue;
+    }
     for (int x = 0; x < bgr.cols; ++x) {
-      const cv::Vec3b& k = b[per_pixel ? x : 0];
-      const int d0 = p[x][0] - k[0], d1 = p[x][1] - k[1], d2 = p[x][2] - k[2];
+      const std::uint8_t* c = p + 3 * x;
+      const std::uint8_t* k = b + (per_pixel ? 3 * x : 0);
+      const int d0 = c[0] - k[0], d1 = c[1] - k[1], d2 = c[2] - k[2];
       const int dist2 = d0 * d0 + d1 * d1 + d2 * d2;
       std::uint8_t score = root[static_cast<std::size_t>(std::min(dist2, kMaxSquare))];
       // A shadow: the backdrop's colour scaled by a (0.35..1.1); only its chroma counts, twice
       // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2).
       const int norm2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
-      if (shadows && norm2 > 900) {
-        const int dot = p[x][0] * k[0] + p[x][1] * k[1] + p[x][2] * k[2];
+      if (norm2 > 900) {
+        const int dot = c[0] * k[0] + c[1] * k[1] + c[2] * k[2];
         if (20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
-          const int c2 = p[x][0] * p[x][0] + p[x][1] * p[x][1] + p[x][2] * p[x][2];
+          const int c2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
           const float off2 = std::max(0.0f, static_cast<float>(c2) - static_cast<float>(dot) *
                                                                          static_cast<float>(dot) /
                                                                          static_cast<float>(norm2));
