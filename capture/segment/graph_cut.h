@@ -1,6 +1,7 @@
 // Graph-cut refinement of a silhouette: a trimap from an "objectness" score (how unlike the
-// backdrop each pixel is), OpenCV's grabCut (colour mixture models of object and backdrop, a
-// graph cut on the image's edges) on a reduced copy, and the edge placed again at full size.
+// backdrop each pixel is), a graph cut by colour (capture/segment/colour_cut.h: colour models of
+// object and backdrop, a cut along the image's edges) on a reduced copy, and the edge placed
+// again at full size.
 //
 // Why: a threshold cannot tell a dark stand or a dark, uneven cloth from the shadowed parts of an
 // object, because their levels overlap; their colours and the image's edges usually differ.
@@ -17,7 +18,7 @@ struct ScoreLevels {
 };
 
 struct GraphCutOptions {
-  // The graph cut runs on a copy whose longer side is at most this (speed: grabCut's cost grows
+  // The graph cut runs on a copy whose longer side is at most this (speed: the cut's cost grows
   // with the pixel count); the edge is then placed at full size. 0: full size.
   int max_side_px = 320;
   int iterations = 3;  // of the colour cut (capture/segment/colour_cut.h)
@@ -30,7 +31,7 @@ struct GraphCutOptions {
   double reach_fraction = 0.075;
 };
 
-// The trimap as grabCut labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the
+// The trimap as GrabCut's labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the
 // score's size: score > object eroded by 2 px: GC_FGD; <= backdrop eroded by 2 px, or on the
 // border ring and not above object: GC_BGD; above 30 % of the way from backdrop to object:
 // GC_PR_FGD; else GC_PR_BGD.
