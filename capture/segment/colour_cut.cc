@@ -12,6 +12,9 @@ namespace revolve::capture {
 namespace {
 
 constexpr int kLevels = 16;
+
+// An index computed in int (image sizes fit), as a container subscript.
+std::size_t At(int index) { return static_cast<std::size_t>(index); }
 constexpr int kBins = kLevels * kLevels * kLevels;
 
 // Colour level (0..15) of an 8-bit value on a square-root scale: levels 0..3 cover 0..15, so the
@@ -32,10 +35,8 @@ std::vector<float> Smoothed(const std::vector<float>& histogram) {
   for (const int stride : strides) {
     for (int i = 0; i < kBins; ++i) {
       const int level = (i / stride) % kLevels;
-      const float left =
-          level > 0 ? a[static_cast<std::size_t>(i - stride)] : a[static_cast<std::size_t>(i)];
-      const float right = level + 1 < kLevels ? a[static_cast<std::size_t>(i + stride)]
-                                              : a[static_cast<std::size_t>(i)];
+      const float left = level > 0 ? a[At(i - stride)] : a[static_cast<std::size_t>(i)];
+      const float right = level + 1 < kLevels ? a[At(i + stride)] : a[static_cast<std::size_t>(i)];
       b[static_cast<std::size_t>(i)] =
           0.25f * left + 0.5f * a[static_cast<std::size_t>(i)] + 0.25f * right;
     }
@@ -117,7 +118,7 @@ Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& o
     const auto* l = labels.ptr<std::uint8_t>(y);
     for (int x = 0; x < bgr.cols; ++x) {
       if (IsSure(l[x])) continue;
-      vertex_of[static_cast<std::size_t>(y * bgr.cols + x)] = static_cast<int>(band.pixel.size());
+      vertex_of[At(y * bgr.cols + x)] = static_cast<int>(band.pixel.size());
       band.pixel.push_back(y * bgr.cols + x);
     }
   }
@@ -127,11 +128,11 @@ Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& o
     const auto* p = bgr.ptr<cv::Vec3b>(y);
     const auto* l = labels.ptr<std::uint8_t>(y);
     for (int x = 0; x < bgr.cols; ++x) {
-      const int v = vertex_of[static_cast<std::size_t>(y * bgr.cols + x)];
+      const int v = vertex_of[At(y * bgr.cols + x)];
       for (int k = 0; k < 4; ++k) {
         const int nx = x + kBackDx[k], ny = y + kBackDy[k];
         if (nx < 0 || nx >= bgr.cols || ny < 0) continue;
-        const int u = vertex_of[static_cast<std::size_t>(ny * bgr.cols + nx)];
+        const int u = vertex_of[At(ny * bgr.cols + nx)];
         if (v < 0 && u < 0) continue;
         const float weight =
             (kBackDy[k] != 0 && kBackDx[k] != 0 ? diagonal : straight) *

@@ -115,8 +115,9 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv
       const float level = one_level ? l[0] : l[x];
       if (level < 0.0f) continue;
       for (int dy = 0; dy < factor; ++dy) {
-        const auto* s = score.ptr<std::uint8_t>(y * factor + dy) + x * factor;
-        auto* o = full.ptr<std::uint8_t>(y * factor + dy) + x * factor;
+        const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(x) * factor;
+        const auto* s = score.ptr<std::uint8_t>(y * factor + dy) + offset;
+        auto* o = full.ptr<std::uint8_t>(y * factor + dy) + offset;
         for (int dx = 0; dx < factor; ++dx) o[dx] = s[dx] >= level ? 255 : 0;
       }
     }

@@ -166,7 +166,7 @@ class PipelineSegmenter final : public Segmenter {
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(
         bgr_w, scored.score, TrimapFromScore(scored.score, scored.levels, roi_w, cut), cut);
-    const cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
+    cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
     cv::Mat mask = Enlarged(mask_w, factor, BackdropDistance(bgr, backdrop, shadows),
                             EdgeLevels(mask_w, scored.score, 1));
@@ -469,15 +469,15 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
     const auto* b = backdrop_bgr.ptr<std::uint8_t>(per_pixel ? y : 0);
     auto* o = out.ptr<std::uint8_t>(y);
     if (!shadows) {  // the common case, kept free of branches
-      const int step = per_pixel ? 3 : 0;
-      for (int x = 0; x < bgr.cols; ++x) {
+      const std::ptrdiff_t step = per_pixel ? 3 : 0;
+      for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
         const std::uint8_t* k = b + step * x;
         const int d0 = p[3 * x] - k[0], d1 = p[3 * x + 1] - k[1], d2 = p[3 * x + 2] - k[2];
         o[x] = root[static_cast<std::size_t>(std::min(d0 * d0 + d1 * d1 + d2 * d2, kMaxSquare))];
       }
       continue;
     }
-    for (int x = 0; x < bgr.cols; ++x) {
+    for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
       const std::uint8_t* c = p + 3 * x;
       const std::uint8_t* k = b + (per_pixel ? 3 * x : 0);
       const int d0 = c[0] - k[0], d1 = c[1] - k[1], d2 = c[2] - k[2];
