@@ -130,8 +130,9 @@ constexpr config::KeyDoc kKeys[] = {
      "background: Euclidean 8-bit BGR distance from the empty scene above which a pixel is object; "
      "0 = chosen per frame (Otsu on the distance image)"},
     {"segment", "background_file", "",
-     "background: an image of the empty scene (same size and camera settings as the scan); "
-     "required with a real camera; relative to the config file"},
+     "background, auto: an image of the empty scene (same size and camera settings as the "
+     "scan); without it a real camera's scan learns the backdrop from its first stops; "
+     "relative to the config file"},
     {"segment", "chroma_key_bgr", "B G R",
      "chroma: the backdrop colour; empty = estimated per frame from the region of interest's "
      "outline (which must show backdrop)",

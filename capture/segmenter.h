@@ -25,9 +25,11 @@ struct SegmentOptions {
   // chroma:     distance from the backdrop's chroma (a green or blue screen).
   // graphcut:   any plain backdrop (dark, light, uneven, with a stand or shadows): the colour
   //             distance to the backdrop (the frame outline's median colour) seeds a trimap, and
-  //             a graph cut (OpenCV grabCut, colour models of object and backdrop) decides the
-  //             rest at reduced size, the edge placed again at full size
-  //             (capture/segment/graph_cut.h). Slower (<= 60 ms a 1280x960 frame).
+  //             a graph cut (colour histograms of object and backdrop, capture/segment/colour_cut)
+  //             decides the rest at reduced size, the edge placed again at full size
+  //             (capture/segment/graph_cut.h). Slower (~40 ms a 1280x960 frame, one core).
+  // Frames of 1280 px or more on their longer side are decided at a reduced size (mask_ops.h
+  // WorkFactor) and their edge placed again at full size.
   // auto:       picks one of the above per frame (Segment) or per set (SegmentImageSet, which
   //             also learns the backdrop from the sequence): a background frame given: background
   //             refined; else a coloured backdrop: chroma; else graphcut.
@@ -43,9 +45,11 @@ struct SegmentOptions {
   // per frame by Otsu's method on the distance image (never below min_contrast).
   double difference_threshold = 0.0;
   // background: an image of the empty scene (plate, fixtures, backdrop; same size and camera
-  // settings as the scan) used instead of a frame the camera captures at the start. Real cameras
-  // need it: they cannot capture the empty scene by themselves. Take it with
-  // `revolve camera snapshot FILE` before putting the object on the plate. Empty: none.
+  // settings as the scan) used instead of a frame the camera captures at the start. Take it with
+  // `revolve camera snapshot FILE` before putting the object on the plate. Empty: none; a scan
+  // whose camera cannot capture the empty scene (a real one) then learns the backdrop from its
+  // first stops (capture/segment/set_segmentation.h, StopBackdropLearner). auto: with it, the
+  // difference to it is refined.
   std::filesystem::path background_file;
   // chroma: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
   // the region of interest's outline (which must show backdrop).

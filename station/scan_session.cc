@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/quality.h"
+#include "capture/segment/set_segmentation.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
@@ -304,10 +305,24 @@ Expected<capture::Frame> ScanSession::CaptureWithRetries(std::stop_token stop, i
   }
 }
 
-Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<SavedStop> saved) {
-  const ScanOptions& scan = config_.scan;
-  const auto scan_start = Clock::now();
+// What the steps of one run share.
+struct ScanSession::Stops {
+  ScanGeometry* geometry = nullptr;
+  Clock::time_point scan_start;
+  Clock::time_point stops_start;
+  int captured = 0;  // stops captured by this run (not resumed)
+  std::map<int, cv::Mat> thumbnails;
+  std::map<int, capture::StopStats> stop_stats;  // of the accepted stops, for the jump gates
+  std::set<int> done;
+  cv::Mat background;  // the empty scene: given or captured; empty when learned or not needed
+  // The backdrop learned from the first stops (no frame of the empty scene).
+  std::optional<capture::StopBackdropLearner> learner;
   ScanResult result;
+};
+
+Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<SavedStop> saved) {
+  Stops run;
+  run.scan_start = Clock::now();
 
   // The camera model (station/scan_geometry.h): the calibration, the camera's own geometry, or
   // the thesis's. A resumed scan keeps the calibration it started with.
@@ -329,215 +344,276 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
       return std::unexpected(w.error());
     }
   }
-
-  // A resumed scan: the saved stops first.
-  std::map<int, cv::Mat> thumbnails;
-  std::map<int, capture::StopStats> stop_stats;  // of the accepted stops, for the jump gates
-  std::set<int> done;
-  for (SavedStop& s : saved) {
-    if (s.index < 0 || s.index >= scan.stops) continue;
-    if (cv::countNonZero(s.mask) == 0) {
-      // Not used for the model (see below); still a stop done.
-    } else if (auto integrated = geometry->Integrate(s.mask, s.frame, s.readback_deg);
-               !integrated) {
-      return std::unexpected(
-          WithContext(integrated.error(), fmt::format("re-integrating saved stop {}", s.index)));
-    }
-    thumbnails[s.index] = ContactSheetTile(s.frame, s.mask);
-    stop_stats[s.index] = capture::MeasureStop(s.frame, s.mask);
-    done.insert(s.index);
-    s.frame.release();
-    s.mask.release();
-  }
-  result.stops_done = static_cast<int>(done.size());
+  run.geometry = &*geometry;
+  if (auto r = ReintegrateSaved(run, saved); !r) return std::unexpected(r.error());
 
   auto t = Clock::now();
-  if (auto homed = devices_.turntable->Home(DeadlineIn(scan.move_timeout_s)); !homed) {
+  if (auto homed = devices_.turntable->Home(DeadlineIn(config_.scan.move_timeout_s)); !homed) {
     return std::unexpected(WithContext(homed.error(), "homing the turntable"));
   }
   times_.home_ms = MsSince(t);
-  if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
+  if (stop.stop_requested()) return std::unexpected(AbortedError(run.result.stops_done));
   auto format = devices_.camera->Start();
   if (!format) return std::unexpected(WithContext(format.error(), "starting the camera"));
   if (auto size = geometry->CheckFrameSize(format->width_px, format->height_px); !size) {
     return std::unexpected(size.error());
   }
-
-  cv::Mat background;
-  if (devices_.segmenter->NeedsBackground()) {
-    if (const auto& file = config_.segment.background_file; !file.empty()) {
-      background = cv::imread(file.string(), cv::IMREAD_COLOR);
-      if (background.empty()) {
-        return MakeError(ErrorCode::kNotFound,
-                         fmt::format("[segment] background_file: cannot read {} (take it with "
-                                     "`revolve camera snapshot {}` with the plate empty)",
-                                     file.string(), file.string()));
-      }
-    } else {
-      auto frame = devices_.camera->CaptureBackground(
-          Clock::now(), std::chrono::duration_cast<Clock::duration>(
-                            std::chrono::duration<double>(scan.capture_timeout_s)));
-      if (!frame) {
-        return std::unexpected(
-            WithContext(frame.error(),
-                        "capturing the background frame (real cameras need [segment] "
-                        "background_file, an image of the empty scene)"));
-      }
-      background = frame->image;
-    }
-    background = geometry->Undistort(background);
-    if (auto w = folder_.WriteImage("frames/background.png", background); !w) {
-      return std::unexpected(w.error());
-    }
+  if (auto prepared = PrepareSegmentation(run); !prepared) {
+    return std::unexpected(prepared.error());
   }
 
-  const auto stops_start = Clock::now();
-  int captured = 0;
-  for (int k = 0; k < scan.stops; ++k) {
-    if (done.contains(k)) continue;
-    if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
-    const auto stop_start = Clock::now();
-    const double commanded_deg = k * scan.step_deg;
+  run.stops_start = Clock::now();
+  for (int k = 0; k < config_.scan.stops; ++k) {
+    if (run.done.contains(k)) continue;
+    if (stop.stop_requested()) return std::unexpected(AbortedError(run.result.stops_done));
+    if (auto scanned = ScanStop(stop, run, k); !scanned) return std::unexpected(scanned.error());
+  }
+  if (stop.stop_requested()) return std::unexpected(AbortedError(run.result.stops_done));
+  return FinishScan(stop, run);
+}
 
-    if (auto e = Enter(ScanState::kMoving, k, commanded_deg); !e) return std::unexpected(e.error());
-    t = Clock::now();
-    if (auto moved = devices_.turntable->MoveTo(commanded_deg, DeadlineIn(scan.move_timeout_s));
-        !moved) {
+Expected<void> ScanSession::ReintegrateSaved(Stops& run, std::vector<SavedStop>& saved) {
+  for (SavedStop& s : saved) {
+    if (s.index < 0 || s.index >= config_.scan.stops) continue;
+    if (cv::countNonZero(s.mask) == 0) {
+      // Not used for the model (see ScanStop); still a stop done.
+    } else if (auto integrated = run.geometry->Integrate(s.mask, s.frame, s.readback_deg);
+               !integrated) {
       return std::unexpected(
-          WithContext(moved.error(), fmt::format("moving to stop {} ({} deg)", k, commanded_deg)));
+          WithContext(integrated.error(), fmt::format("re-integrating saved stop {}", s.index)));
     }
-    auto state = devices_.turntable->State();
-    if (!state) return std::unexpected(WithContext(state.error(), "reading the turntable"));
-    times_.move_ms += MsSince(t);
+    run.thumbnails[s.index] = ContactSheetTile(s.frame, s.mask);
+    run.stop_stats[s.index] = capture::MeasureStop(s.frame, s.mask);
+    run.done.insert(s.index);
+    s.frame.release();
+    s.mask.release();
+  }
+  run.result.stops_done = static_cast<int>(run.done.size());
+  return {};
+}
 
-    if (auto e = Enter(ScanState::kSettling, k, commanded_deg); !e) {
-      return std::unexpected(e.error());
+Expected<void> ScanSession::PrepareSegmentation(Stops& run) {
+  const capture::SegmentOptions& segment = config_.segment;
+  const bool background_method = devices_.segmenter->NeedsBackground();
+  const bool automatic = segment.method == "auto";
+  if (!background_method && !automatic) return {};
+  if (const auto& file = segment.background_file; !file.empty()) {
+    run.background = cv::imread(file.string(), cv::IMREAD_COLOR);
+    if (run.background.empty()) {
+      return MakeError(ErrorCode::kNotFound,
+                       fmt::format("[segment] background_file: cannot read {} (take it with "
+                                   "`revolve camera snapshot {}` with the plate empty)",
+                                   file.string(), file.string()));
     }
-    t = Clock::now();
-    SleepFor(stop, scan.settle_ms);
-    if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
-    auto settled = Clock::now();
-    times_.settle_ms += MsSince(t);
-
-    if (auto e = Enter(ScanState::kCapturing, k, commanded_deg); !e) {
-      return std::unexpected(e.error());
-    }
-    // Capture and segment; a stop that fails a quality gate is captured again up to
-    // [quality] recaptures times, then kept with its warnings.
-    Expected<capture::Frame> frame = std::unexpected(Error{});
-    Expected<cv::Mat> mask = std::unexpected(Error{});
-    capture::StopAssessment assessment;
-    for (int attempt = 0;; ++attempt) {
-      t = Clock::now();
-      frame = CaptureWithRetries(stop, k, settled);
-      if (!frame) return std::unexpected(frame.error());
-      // Segmented, integrated and saved as the views describe it.
-      frame->image = geometry->Undistort(frame->image);
-      times_.capture_ms += MsSince(t);
-
-      t = Clock::now();
-      mask = devices_.segmenter->Segment(frame->image, background);
-      if (!mask) {
-        return std::unexpected(WithContext(mask.error(), fmt::format("segmenting stop {}", k)));
-      }
-      assessment = capture::AssessStop(frame->image, *mask, NeighbourStats(stop_stats, k, scan),
-                                       config_.quality);
-      times_.segment_ms += MsSince(t);
-      if (assessment.ok() || attempt >= config_.quality.recaptures || stop.stop_requested()) {
-        break;
-      }
-      Emit(machine_->Note(
-          fmt::format("stop {}: {}; capturing again ({} of {})", k,
-                      WarningsText(assessment.warnings), attempt + 1, config_.quality.recaptures),
-          Clock::now()));
-      settled = Clock::now();
-    }
-    stop_stats[k] = assessment.stats;
-    const int mask_area_px = assessment.stats.area_px;
-    if (!assessment.ok()) {
-      Emit(
-          machine_->Note(fmt::format("stop {}: warning: {}{}", k, WarningsText(assessment.warnings),
-                                     mask_area_px == 0 ? " (not used for the model)" : ""),
-                         Clock::now()));
-    } else if (mask_area_px == 0) {
-      Emit(machine_->Note(
-          fmt::format("stop {}: the silhouette is empty (not used for the model)", k),
-          Clock::now()));
-    }
-
-    // The integrating event carries the silhouette's area.
-    if (auto e = machine_->Enter(ScanState::kIntegrating, Clock::now(), k, commanded_deg); e) {
-      e->mask_area_px = mask_area_px;
-      Emit(std::move(*e));
-    } else {
-      return std::unexpected(e.error());
-    }
-    t = Clock::now();
-    // An empty silhouette would carve the whole model away: it is kept in the folder (with its
-    // warning) but not used.
-    if (mask_area_px > 0) {
-      if (auto integrated = geometry->Integrate(*mask, frame->image, state->angle_deg);
-          !integrated) {
-        return std::unexpected(
-            WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
-      }
-    }
-    times_.integrate_ms += MsSince(t);
-
-    t = Clock::now();
-    const std::string name = StopFileName(k);
-    if (auto w = folder_.WriteImage("frames/" + name, frame->image); !w) {
-      return std::unexpected(w.error());
-    }
-    if (auto w = folder_.WriteImage("masks/" + name, *mask); !w) return std::unexpected(w.error());
-    thumbnails[k] = ContactSheetTile(frame->image, *mask);
-    nlohmann::json entry = {{"index", k},
-                            {"commanded_deg", commanded_deg},
-                            {"readback_deg", state->angle_deg},
-                            {"captured", IsoTimeNow()},
-                            {"frame", "frames/" + name},
-                            {"mask", "masks/" + name},
-                            {"mask_area_px", mask_area_px}};
-    if (frame->exposure_us > 0.0) entry["exposure_us"] = frame->exposure_us;
-    if (!assessment.ok()) {
-      entry["quality"] = nlohmann::json::array();
-      for (const capture::QualityWarning& w : assessment.warnings) {
-        entry["quality"].push_back({{"code", w.code}, {"message", w.message}});
-      }
-    }
-    manifest_["stops"].push_back(std::move(entry));
-    SortStopsByIndex(manifest_["stops"]);
-    manifest_["stops_done"] = result.stops_done + 1;
-    if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
-    times_.save_ms += MsSince(t);
-    machine_->StopSaved();
-    if (on_live_) {
-      on_live_(LiveStop{scan_id_, k, scan.stops, frame->image, *mask,
-                        geometry->LiveView(state->angle_deg, mask->cols, mask->rows),
-                        geometry->bbox_min_mm(), geometry->bbox_max_mm()});
-    }
-    done.insert(k);
-    ++result.stops_done;
-    ++captured;
-
-    if (on_stop_) {
-      StopProgress p;
-      p.index = k;
-      p.stops = scan.stops;
-      p.commanded_deg = commanded_deg;
-      p.readback_deg = state->angle_deg;
-      p.mask_area_px = mask_area_px;
-      p.stop_ms = MsSince(stop_start);
-      const double per_stop_ms = MsSince(stops_start) / captured;
-      p.eta_s = per_stop_ms * (scan.stops - result.stops_done) / 1000.0;
-      on_stop_(p);
+  } else if (background_method) {
+    auto frame = devices_.camera->CaptureBackground(
+        Clock::now(), std::chrono::duration_cast<Clock::duration>(
+                          std::chrono::duration<double>(config_.scan.capture_timeout_s)));
+    if (frame) {
+      run.background = frame->image;
+    } else if (frame.error().code != ErrorCode::kUnsupported) {
+      return std::unexpected(
+          WithContext(frame.error(),
+                      "capturing the background frame (real cameras need [segment] "
+                      "background_file, an image of the empty scene)"));
     }
   }
-  if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
+  if (run.background.empty()) {
+    // No frame of the empty scene: the backdrop is learned from the first stops.
+    Expected<capture::StopBackdropLearner> learner = capture::StopBackdropLearner::Create(segment);
+    if (!learner) return std::unexpected(learner.error());
+    run.learner = std::move(*learner);
+    Emit(machine_->Note(fmt::format("segmentation: {}", run.learner->reason()), Clock::now()));
+    manifest_["segmentation"] = {{"method", run.learner->method()},
+                                 {"reason", run.learner->reason()}};
+    return {};
+  }
+  run.background = run.geometry->Undistort(run.background);
+  if (auto w = folder_.WriteImage("frames/background.png", run.background); !w) {
+    return std::unexpected(w.error());
+  }
+  return {};
+}
 
-  if (auto e = Enter(ScanState::kMeshing); !e) return std::unexpected(e.error());
+Expected<cv::Mat> ScanSession::SegmentStop(Stops& run, const cv::Mat& frame) {
+  if (run.learner) return run.learner->Segment(frame);
+  return devices_.segmenter->Segment(frame, run.background);
+}
+
+Expected<ScanSession::CapturedStop> ScanSession::CaptureAndSegment(
+    std::stop_token stop, Stops& run, int k, capture::Clock::time_point settled) {
+  // A stop that fails a quality gate is captured again up to [quality] recaptures times, then
+  // kept with its warnings.
+  CapturedStop captured;
+  for (int attempt = 0;; ++attempt) {
+    auto t = Clock::now();
+    Expected<capture::Frame> frame = CaptureWithRetries(stop, k, settled);
+    if (!frame) return std::unexpected(frame.error());
+    // Segmented, integrated and saved as the views describe it.
+    frame->image = run.geometry->Undistort(frame->image);
+    times_.capture_ms += MsSince(t);
+
+    t = Clock::now();
+    Expected<cv::Mat> mask = SegmentStop(run, frame->image);
+    if (!mask) {
+      return std::unexpected(WithContext(mask.error(), fmt::format("segmenting stop {}", k)));
+    }
+    captured.assessment = capture::AssessStop(
+        frame->image, *mask, NeighbourStats(run.stop_stats, k, config_.scan), config_.quality);
+    times_.segment_ms += MsSince(t);
+    captured.frame = std::move(*frame);
+    captured.mask = std::move(*mask);
+    if (captured.assessment.ok() || attempt >= config_.quality.recaptures ||
+        stop.stop_requested()) {
+      break;
+    }
+    Emit(machine_->Note(fmt::format("stop {}: {}; capturing again ({} of {})", k,
+                                    WarningsText(captured.assessment.warnings), attempt + 1,
+                                    config_.quality.recaptures),
+                        Clock::now()));
+    settled = Clock::now();
+  }
+  // A kept stop teaches the learned backdrop (the first ones), when it has an object.
+  if (run.learner && captured.assessment.ok() &&
+      run.learner->Add(captured.frame.image, captured.mask)) {
+    Emit(machine_->Note(fmt::format("segmentation: {}", run.learner->reason()), Clock::now()));
+    manifest_["segmentation"] = {{"method", run.learner->method()},
+                                 {"reason", run.learner->reason()},
+                                 {"learned_after_stop", k}};
+    if (auto w = folder_.WriteImage("frames/background.png", run.learner->backdrop()); !w) {
+      return std::unexpected(w.error());
+    }
+  }
+  return captured;
+}
+
+Expected<void> ScanSession::ScanStop(std::stop_token stop, Stops& run, int k) {
+  const ScanOptions& scan = config_.scan;
+  const auto stop_start = Clock::now();
+  const double commanded_deg = k * scan.step_deg;
+
+  if (auto e = Enter(ScanState::kMoving, k, commanded_deg); !e) return std::unexpected(e.error());
+  auto t = Clock::now();
+  if (auto moved = devices_.turntable->MoveTo(commanded_deg, DeadlineIn(scan.move_timeout_s));
+      !moved) {
+    return std::unexpected(
+        WithContext(moved.error(), fmt::format("moving to stop {} ({} deg)", k, commanded_deg)));
+  }
+  auto state = devices_.turntable->State();
+  if (!state) return std::unexpected(WithContext(state.error(), "reading the turntable"));
+  times_.move_ms += MsSince(t);
+
+  if (auto e = Enter(ScanState::kSettling, k, commanded_deg); !e) {
+    return std::unexpected(e.error());
+  }
   t = Clock::now();
-  auto mesh = geometry->Finish();
+  SleepFor(stop, scan.settle_ms);
+  if (stop.stop_requested()) return std::unexpected(AbortedError(run.result.stops_done));
+  const auto settled = Clock::now();
+  times_.settle_ms += MsSince(t);
+
+  if (auto e = Enter(ScanState::kCapturing, k, commanded_deg); !e) {
+    return std::unexpected(e.error());
+  }
+  Expected<CapturedStop> captured = CaptureAndSegment(stop, run, k, settled);
+  if (!captured) return std::unexpected(captured.error());
+  const capture::StopAssessment& assessment = captured->assessment;
+  run.stop_stats[k] = assessment.stats;
+  const int mask_area_px = assessment.stats.area_px;
+  if (!assessment.ok()) {
+    Emit(machine_->Note(fmt::format("stop {}: warning: {}{}", k, WarningsText(assessment.warnings),
+                                    mask_area_px == 0 ? " (not used for the model)" : ""),
+                        Clock::now()));
+  } else if (mask_area_px == 0) {
+    Emit(machine_->Note(fmt::format("stop {}: the silhouette is empty (not used for the model)", k),
+                        Clock::now()));
+  }
+
+  // The integrating event carries the silhouette's area.
+  if (auto e = machine_->Enter(ScanState::kIntegrating, Clock::now(), k, commanded_deg); e) {
+    e->mask_area_px = mask_area_px;
+    Emit(std::move(*e));
+  } else {
+    return std::unexpected(e.error());
+  }
+  t = Clock::now();
+  // An empty silhouette would carve the whole model away: it is kept in the folder (with its
+  // warning) but not used.
+  if (mask_area_px > 0) {
+    if (auto integrated =
+            run.geometry->Integrate(captured->mask, captured->frame.image, state->angle_deg);
+        !integrated) {
+      return std::unexpected(
+          WithContext(integrated.error(), fmt::format("integrating stop {}", k)));
+    }
+  }
+  times_.integrate_ms += MsSince(t);
+  if (auto saved = SaveStop(run, k, commanded_deg, state->angle_deg, *captured); !saved) {
+    return saved;
+  }
+
+  if (on_stop_) {
+    StopProgress p;
+    p.index = k;
+    p.stops = scan.stops;
+    p.commanded_deg = commanded_deg;
+    p.readback_deg = state->angle_deg;
+    p.mask_area_px = mask_area_px;
+    p.stop_ms = MsSince(stop_start);
+    const double per_stop_ms = MsSince(run.stops_start) / run.captured;
+    p.eta_s = per_stop_ms * (scan.stops - run.result.stops_done) / 1000.0;
+    on_stop_(p);
+  }
+  return {};
+}
+
+Expected<void> ScanSession::SaveStop(Stops& run, int k, double commanded_deg, double readback_deg,
+                                     const CapturedStop& captured) {
+  const auto t = Clock::now();
+  const std::string name = StopFileName(k);
+  const cv::Mat& image = captured.frame.image;
+  if (auto w = folder_.WriteImage("frames/" + name, image); !w) return std::unexpected(w.error());
+  if (auto w = folder_.WriteImage("masks/" + name, captured.mask); !w) {
+    return std::unexpected(w.error());
+  }
+  run.thumbnails[k] = ContactSheetTile(image, captured.mask);
+  nlohmann::json entry = {{"index", k},
+                          {"commanded_deg", commanded_deg},
+                          {"readback_deg", readback_deg},
+                          {"captured", IsoTimeNow()},
+                          {"frame", "frames/" + name},
+                          {"mask", "masks/" + name},
+                          {"mask_area_px", captured.assessment.stats.area_px}};
+  if (captured.frame.exposure_us > 0.0) entry["exposure_us"] = captured.frame.exposure_us;
+  if (!captured.assessment.ok()) {
+    entry["quality"] = nlohmann::json::array();
+    for (const capture::QualityWarning& w : captured.assessment.warnings) {
+      entry["quality"].push_back({{"code", w.code}, {"message", w.message}});
+    }
+  }
+  manifest_["stops"].push_back(std::move(entry));
+  SortStopsByIndex(manifest_["stops"]);
+  manifest_["stops_done"] = run.result.stops_done + 1;
+  if (auto w = SaveManifest(); !w) return std::unexpected(w.error());
+  times_.save_ms += MsSince(t);
+  machine_->StopSaved();
+  if (on_live_) {
+    on_live_(LiveStop{scan_id_, k, config_.scan.stops, image, captured.mask,
+                      run.geometry->LiveView(readback_deg, captured.mask.cols, captured.mask.rows),
+                      run.geometry->bbox_min_mm(), run.geometry->bbox_max_mm()});
+  }
+  run.done.insert(k);
+  ++run.result.stops_done;
+  ++run.captured;
+  return {};
+}
+
+Expected<ScanResult> ScanSession::FinishScan(std::stop_token stop, Stops& run) {
+  ScanResult& result = run.result;
+  const ScanGeometry& geometry = *run.geometry;
+  if (auto e = Enter(ScanState::kMeshing); !e) return std::unexpected(e.error());
+  auto t = Clock::now();
+  auto mesh = run.geometry->Finish();
   if (!mesh) return std::unexpected(WithContext(mesh.error(), "meshing"));
   times_.mesh_ms = MsSince(t);
   if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
@@ -552,13 +628,13 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
     result.model_files.push_back(std::filesystem::relative(f, folder_.dir()).string());
   }
   std::vector<cv::Mat> tiles;
-  tiles.reserve(thumbnails.size());
-  for (auto& [index, tile] : thumbnails) tiles.push_back(tile);
+  tiles.reserve(run.thumbnails.size());
+  for (auto& [index, tile] : run.thumbnails) tiles.push_back(tile);
   if (auto w = folder_.WriteImage("contact_sheet.png", AssembleContactSheet(tiles)); !w) {
     return std::unexpected(w.error());
   }
   times_.write_ms = MsSince(t);
-  times_.total_ms = MsSince(scan_start);
+  times_.total_ms = MsSince(run.scan_start);
 
   const reconstruct::MeshStats stats = reconstruct::ComputeStats(*mesh);
   result.vertices = static_cast<std::size_t>(stats.vertex_count);
@@ -569,10 +645,11 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   report["recipe"] = config_.recipe;
   report["stops_done"] = result.stops_done;
   // units ("mm" | "px"), scale, camera model, calibration, silhouette axis.
-  report.update(geometry->ReportJson());
+  report.update(geometry.ReportJson());
   // Lengths in the model's unit, named by it: _mm with a metric geometry, _px in thesis mode.
-  const std::string unit = geometry->metric() ? "mm" : "px";
+  const std::string unit = geometry.metric() ? "mm" : "px";
   report["model"] = ModelReportJson(result.model_files, stats, unit);
+  if (manifest_.contains("segmentation")) report["segmentation"] = manifest_["segmentation"];
   // The quality gates' warnings of the kept stops (the manifest has them per stop).
   report["quality_warnings"] = nlohmann::json::array();
   for (const nlohmann::json& entry : manifest_["stops"]) {
@@ -584,7 +661,7 @@ Expected<ScanResult> ScanSession::RunStops(std::stop_token stop, std::vector<Sav
   }
   report["times_ms"] = times_.ToJson();
   // The truth is in millimetres: not comparable with a thesis-mode model in pixels.
-  if (auto truth = devices_.camera->KnownScene(); truth && geometry->metric()) {
+  if (auto truth = devices_.camera->KnownScene(); truth && geometry.metric()) {
     report["accuracy"] = AccuracyJson(*mesh, stats, *truth);
   }
   if (auto w = folder_.WriteJson("report.json", report); !w) return std::unexpected(w.error());

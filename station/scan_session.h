@@ -18,6 +18,7 @@
 
 #include "base/error.h"
 #include "base/rig.h"
+#include "capture/quality.h"
 #include "station/devices.h"
 #include "station/saved_stops.h"
 #include "station/scan_folder.h"
@@ -101,7 +102,25 @@ class ScanSession {
 
  private:
   Expected<ScanResult> Execute(std::stop_token stop, std::vector<SavedStop> saved);
+  // RunStops' steps: the saved stops of a resumed scan, the background frame or the learner
+  // (no frame of the empty scene), each stop (move, settle, capture and segment with its quality
+  // gates, integrate, save), then the model and the report.
+  struct Stops;
+  struct CapturedStop {
+    capture::Frame frame;
+    cv::Mat mask;
+    capture::StopAssessment assessment;
+  };
   Expected<ScanResult> RunStops(std::stop_token stop, std::vector<SavedStop> saved);
+  Expected<void> ReintegrateSaved(Stops& run, std::vector<SavedStop>& saved);
+  Expected<void> PrepareSegmentation(Stops& run);
+  Expected<cv::Mat> SegmentStop(Stops& run, const cv::Mat& frame);
+  Expected<CapturedStop> CaptureAndSegment(std::stop_token stop, Stops& run, int k,
+                                           capture::Clock::time_point settled);
+  Expected<void> ScanStop(std::stop_token stop, Stops& run, int k);
+  Expected<void> SaveStop(Stops& run, int k, double commanded_deg, double readback_deg,
+                          const CapturedStop& captured);
+  Expected<ScanResult> FinishScan(std::stop_token stop, Stops& run);
   Expected<capture::Frame> CaptureWithRetries(std::stop_token stop, int stop_index,
                                               capture::Clock::time_point settled);
   Expected<void> SaveManifest();

@@ -6,6 +6,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "capture/segment/colour_cut.h"
+
 namespace revolve::capture {
 namespace {
 
@@ -50,9 +52,20 @@ cv::Mat ReduceTrimap(const cv::Mat& trimap, cv::Size size, int radius_px) {
   return small;
 }
 
-// In a band around the edge of `mask`, each pixel decided by its score against the mean of the
-// nearby inside and outside scores.
-cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
+// Undecided pixels farther than `reach_px` from every sure object pixel become sure backdrop: the
+// object is what the sure core reaches. A cloth's fold or a stand far from the object is not cut
+// (the max-flow's slow case: a wide region both colour models explain alike).
+void LimitReach(cv::Mat& labels, double reach_px) {
+  const cv::Mat sure_object = labels == cv::GC_FGD;
+  if (reach_px <= 0.0 || cv::countNonZero(sure_object) == 0) return;
+  cv::Mat distance;
+  cv::distanceTransform(~sure_object, distance, cv::DIST_L2, 3);
+  labels.setTo(cv::GC_BGD, distance > reach_px);
+}
+
+}  // namespace
+
+cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   const cv::Mat inside = Eroded(mask, radius_px + 1);
   const cv::Mat outside = ~Dilated(mask, radius_px + 1);
   const cv::Mat band = Dilated(mask, radius_px) & ~Eroded(mask, radius_px);
@@ -67,26 +80,36 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   cv::boxFilter(in_f, in_count, CV_32F, window, {-1, -1}, false);
   cv::boxFilter(score_f.mul(out_f), out_sum, CV_32F, window, {-1, -1}, false);
   cv::boxFilter(out_f, out_count, CV_32F, window, {-1, -1}, false);
-  cv::Mat out = mask.clone();
+  cv::Mat levels(mask.size(), CV_32FC1, cv::Scalar(-1.0f));
   for (int y = 0; y < mask.rows; ++y) {
     const auto* b = band.ptr<std::uint8_t>(y);
-    const auto* s = score_f.ptr<float>(y);
     const auto* is = in_sum.ptr<float>(y);
     const auto* ic = in_count.ptr<float>(y);
     const auto* os = out_sum.ptr<float>(y);
     const auto* oc = out_count.ptr<float>(y);
-    auto* o = out.ptr<std::uint8_t>(y);
+    auto* l = levels.ptr<float>(y);
     for (int x = 0; x < mask.cols; ++x) {
       if (!b[x] || ic[x] < 0.5f || oc[x] < 0.5f) continue;
       const float outside_level = os[x] / oc[x];
-      const float middle = outside_level + kEdgeFraction * (is[x] / ic[x] - outside_level);
-      o[x] = s[x] >= middle ? 255 : 0;
+      l[x] = outside_level + kEdgeFraction * (is[x] / ic[x] - outside_level);
+    }
+  }
+  return levels;
+}
+
+cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
+  const cv::Mat levels = EdgeLevels(mask, score, radius_px);
+  cv::Mat out = mask.clone();
+  for (int y = 0; y < mask.rows; ++y) {
+    const auto* l = levels.ptr<float>(y);
+    const auto* s = score.ptr<std::uint8_t>(y);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (l[x] >= 0.0f) o[x] = s[x] >= l[x] ? 255 : 0;
     }
   }
   return out;
 }
-
-}  // namespace
 
 cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
                         const GraphCutOptions& options) {
@@ -123,6 +146,7 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::M
     cv::resize(bgr, small_bgr, size, 0.0, 0.0, cv::INTER_AREA);
     labels = ReduceTrimap(trimap, size, radius);
   }
+  LimitReach(labels, options.reach_fraction * std::max(labels.cols, labels.rows));
   const bool has_fg = cv::countNonZero((labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD)) > 0;
   const bool has_bg = cv::countNonZero((labels == cv::GC_BGD) | (labels == cv::GC_PR_BGD)) > 0;
   if (!has_fg || !has_bg) return fallback;
@@ -134,13 +158,9 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::M
                                  undecided.width + 2 * margin, undecided.height + 2 * margin) &
                         cv::Rect(0, 0, labels.cols, labels.rows);
   cv::Mat cropped_labels = labels(crop).clone();
-  cv::Mat background_model, object_model;
-  try {
-    cv::grabCut(small_bgr(crop), cropped_labels, cv::Rect(), background_model, object_model,
-                options.iterations, cv::GC_INIT_WITH_MASK);
-  } catch (const cv::Exception&) {
-    return fallback;  // too few seeds of one kind for a colour model
-  }
+  ColourCutOptions cut;
+  cut.iterations = options.iterations;
+  if (!CutByColour(small_bgr(crop), cropped_labels, cut)) return fallback;
   cropped_labels.copyTo(labels(crop));
   cv::Mat object = (labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD);
   if (scale == 1.0) return object;

@@ -1,5 +1,8 @@
 #include "capture/segment/mask_ops.h"
 
+#include <algorithm>
+#include <cstdint>
+
 #include <opencv2/imgproc.hpp>
 
 namespace revolve::capture {
@@ -79,6 +82,47 @@ cv::Mat FillHolesUpTo(const cv::Mat& mask, int max_area_px) {
     if (stats.at<int>(label, cv::CC_STAT_AREA) > max_area_px) filled.setTo(0, labels == label);
   }
   return filled;
+}
+
+int WorkFactor(cv::Size size) {
+  const int side = std::max(size.width, size.height);
+  for (int factor = side / kWorkSidePx; factor > 1; --factor) {
+    if (size.width % factor == 0 && size.height % factor == 0) return factor;
+  }
+  return 1;
+}
+
+cv::Mat Reduced(const cv::Mat& image, int factor) {
+  if (factor <= 1) return image;
+  cv::Mat out;
+  cv::resize(image, out, cv::Size(image.cols / factor, image.rows / factor), 0.0, 0.0,
+             cv::INTER_AREA);
+  return out;
+}
+
+cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels) {
+  if (factor <= 1 && levels.empty()) return mask;
+  cv::Mat full;
+  cv::resize(mask, full, score.size(), 0.0, 0.0, cv::INTER_NEAREST);
+  cv::Mat edge;
+  cv::morphologyEx(mask, edge, cv::MORPH_GRADIENT, cv::Mat());
+  const bool one_level = levels.total() == 1;
+  for (int y = 0; y < mask.rows; ++y) {
+    const auto* e = edge.ptr<std::uint8_t>(y);
+    const float* l = one_level ? levels.ptr<float>(0) : levels.ptr<float>(y);
+    for (int x = 0; x < mask.cols; ++x) {
+      if (!e[x]) continue;
+      const float level = one_level ? l[0] : l[x];
+      if (level < 0.0f) continue;
+      for (int dy = 0; dy < factor; ++dy) {
+        const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(x) * factor;
+        const auto* s = score.ptr<std::uint8_t>(y * factor + dy) + offset;
+        auto* o = full.ptr<std::uint8_t>(y * factor + dy) + offset;
+        for (int dx = 0; dx < factor; ++dx) o[dx] = s[dx] >= level ? 255 : 0;
+      }
+    }
+  }
+  return full;
 }
 
 }  // namespace revolve::capture

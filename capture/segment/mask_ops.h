@@ -29,4 +29,24 @@ cv::Mat FillHoles(const cv::Mat& mask);
 // `max_area_px` stay open. max_area_px <= 0 fills every hole.
 cv::Mat FillHolesUpTo(const cv::Mat& mask, int max_area_px);
 
+// Large frames are segmented on a copy reduced by an integer factor (the work size, at least
+// kWorkSidePx on its longer side), and the edge is then placed again at full size.
+constexpr int kWorkSidePx = 640;
+
+// The largest integer factor that divides both sides and keeps the longer one at least
+// kWorkSidePx; 1 for frames up to twice that size (or whose sides share no such factor).
+int WorkFactor(cv::Size size);
+
+// `image` reduced by `factor` (pixel averages, cv::INTER_AREA); the image itself for factor 1.
+// Contract: factor divides both sides.
+cv::Mat Reduced(const cv::Mat& image, int factor);
+
+// A mask of the work size (CV_8UC1, 0/255) enlarged by `factor` to the full size, the edge
+// placed again at full size: every full-size pixel under a work pixel on the mask's edge (a 3x3
+// neighbourhood that holds both values) is object when its `score` (CV_8UC1, full size) is at
+// least the work pixel's level in `levels` (CV_32FC1 of the work size, or 1x1 for one level
+// everywhere); a negative level keeps the enlarged value. Away from the edge, the work mask
+// holds: specks it dropped and holes it filled stay so.
+cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels);
+
 }  // namespace revolve::capture

@@ -54,16 +54,22 @@ struct OtsuSplit {
   bool two_classes = false;
 };
 
-// Otsu's threshold over the pixels of `grey` (CV_8UC1) where `roi` is set.
+// Otsu's threshold over the pixels of `grey` (CV_8UC1) where `roi` is set (empty: all).
 OtsuSplit Otsu(const cv::Mat& grey, const cv::Mat& roi) {
-  std::array<double, 256> histogram{};
+  std::array<std::int64_t, 256> counts{};
   for (int y = 0; y < grey.rows; ++y) {
     const auto* g = grey.ptr<std::uint8_t>(y);
+    if (roi.empty()) {
+      for (int x = 0; x < grey.cols; ++x) ++counts[g[x]];
+      continue;
+    }
     const auto* r = roi.ptr<std::uint8_t>(y);
     for (int x = 0; x < grey.cols; ++x) {
-      if (r[x]) histogram[g[x]] += 1.0;
+      if (r[x]) ++counts[g[x]];
     }
   }
+  std::array<double, 256> histogram{};
+  for (int i = 0; i < 256; ++i) histogram[i] = static_cast<double>(counts[i]);
   double total = 0.0, sum = 0.0;
   for (int i = 0; i < 256; ++i) {
     total += histogram[i];
@@ -95,74 +101,99 @@ class PipelineSegmenter final : public Segmenter {
 
   Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const override {
     if (auto ok = CheckImage(image, "image"); !ok) return std::unexpected(ok.error());
-    const cv::Mat roi = RegionOfInterestMask(options_, image.size());
+    const bool has_roi = !options_.roi_px.empty() || !options_.roi_polygon_px.empty() ||
+                         !options_.exclude_px.empty();
+    const cv::Mat roi = has_roi ? RegionOfInterestMask(options_, image.size()) : cv::Mat();
     std::string method = options_.method;
     if (method == "auto") method = AutoMethod(image, background, roi);
-    Expected<cv::Mat> raw = cv::Mat();
-    std::optional<ScoredLevels> scored;
-    if (method == "otsu" || method == "fixed") {
-      raw = Threshold(image, roi);
-    } else if (method == "background") {
-      if (options_.refine || options_.method == "auto") {
-        if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
-        scored = GraphCut(Bgr(image), Bgr(background), false, roi);
-        raw = scored->mask;
-      } else {
-        raw = Difference(image, background, roi);
-      }
-    } else if (method == "graphcut") {
+    const int factor = WorkFactor(image.size());
+    if (method == "graphcut") {
       const cv::Mat bgr = Bgr(image);
       const cv::Scalar key = options_.backdrop_bgr.size() == 3
                                  ? cv::Scalar(options_.backdrop_bgr[0], options_.backdrop_bgr[1],
                                               options_.backdrop_bgr[2])
                                  : EstimateBackdropColour(bgr, roi);
-      scored = GraphCut(bgr, cv::Mat(1, 1, CV_8UC3, key), Luma(key) >= kShadowModelMinLuma, roi);
-      raw = scored->mask;
-    } else {
-      raw = Chroma(image, roi);
+      return SegmentByCut(bgr, cv::Mat(1, 1, CV_8UC3, key), Luma(key) >= kShadowModelMinLuma, roi,
+                          factor);
     }
-    if (!raw) return raw;
-    return CleanUp(*raw, roi, scored ? &*scored : nullptr);
+    if (method == "background") {
+      if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
+      if (options_.refine || options_.method == "auto") {
+        return SegmentByCut(Bgr(image), Bgr(background), false, roi, factor);
+      }
+    }
+    // A score per pixel (higher: more like the object) and a level it must reach.
+    Expected<cv::Mat> score =
+        method == "otsu" || method == "fixed" ? ObjectLevels(image)
+        : method == "background"
+            ? Expected<cv::Mat>(BackdropDistance(Bgr(image), Bgr(background), false))
+            : Chroma(image, roi);
+    if (!score) return score;
+    const cv::Mat score_w = Reduced(*score, factor);
+    const cv::Mat roi_w = ReducedRoi(roi, factor);
+    const std::optional<double> level = ObjectLevel(method, score_w, roi_w);
+    if (!level) return cv::Mat(cv::Mat::zeros(image.size(), CV_8UC1));
+    cv::Mat mask_w;
+    cv::compare(score_w, *level, mask_w, cv::CMP_GE);
+    mask_w = CleanUp(mask_w, roi_w, nullptr, factor);
+    if (factor == 1) return mask_w;
+    cv::Mat mask = Enlarged(mask_w, factor, *score, cv::Mat(1, 1, CV_32FC1, cv::Scalar(*level)));
+    if (!roi.empty()) mask &= roi;
+    return mask;
   }
 
-  // Segments with a graph cut seeded by the distance to `backdrop` (a 1x1 colour or a frame):
-  // the mask before clean-up, the score and its levels.
+  // The score and its levels a graph cut was seeded from.
   struct ScoredLevels {
-    cv::Mat mask;
     cv::Mat score;
     ScoreLevels levels;
   };
-  ScoredLevels GraphCut(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
-                        const cv::Mat& roi) const {
-    ScoredLevels out;
-    out.score = BackdropDistance(bgr, backdrop, shadows);
-    const OtsuSplit split = Otsu(out.score, roi);
+
+  // Segments with a graph cut seeded by the distance to `backdrop` (a 1x1 colour or a frame), at
+  // the work size, then places the edge at full size.
+  cv::Mat SegmentByCut(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
+                       const cv::Mat& roi, int factor) const {
+    const cv::Mat bgr_w = Reduced(bgr, factor);
+    const cv::Mat backdrop_w = backdrop.size() == bgr.size() ? Reduced(backdrop, factor) : backdrop;
+    const cv::Mat roi_w = ReducedRoi(roi, factor);
+    ScoredLevels scored;
+    scored.score = BackdropDistance(bgr_w, backdrop_w, shadows);
+    const OtsuSplit split = Otsu(scored.score, roi_w);
     if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
-      out.mask = cv::Mat::zeros(bgr.size(), CV_8UC1);
-      return out;
+      return cv::Mat::zeros(bgr.size(), CV_8UC1);
     }
-    out.levels = {static_cast<double>(split.threshold), split.low_mean};
+    scored.levels = {static_cast<double>(split.threshold), split.low_mean};
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
-    out.mask =
-        RefineWithGraphCut(bgr, out.score, TrimapFromScore(out.score, out.levels, roi, cut), cut);
-    return out;
+    const cv::Mat cut_w = RefineWithGraphCut(
+        bgr_w, scored.score, TrimapFromScore(scored.score, scored.levels, roi_w, cut), cut);
+    cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
+    if (factor == 1) return mask_w;
+    cv::Mat mask = Enlarged(mask_w, factor, BackdropDistance(bgr, backdrop, shadows),
+                            EdgeLevels(mask_w, scored.score, 1));
+    if (!roi.empty()) mask &= roi;
+    return mask;
   }
 
-  // The clean-up every method ends with (see segmenter.h).
-  cv::Mat CleanUp(const cv::Mat& raw, const cv::Mat& roi, const ScoredLevels* scored) const {
-    cv::Mat mask = raw & roi;
-    mask = CloseMask(OpenMask(mask, options_.open_px), options_.close_px);
+  // The clean-up every method ends with (see segmenter.h), at the work size: the radii and areas
+  // are full-size pixels, scaled by `factor`.
+  cv::Mat CleanUp(const cv::Mat& raw, const cv::Mat& roi, const ScoredLevels* scored,
+                  int factor) const {
+    const auto radius = [factor](int r) {
+      return r > 0 ? std::max(1, (r + factor / 2) / factor) : 0;
+    };
+    const int area_scale = factor * factor;
+    cv::Mat mask = roi.empty() ? raw : cv::Mat(raw & roi);
+    mask = CloseMask(OpenMask(mask, radius(options_.open_px)), radius(options_.close_px));
     if (options_.keep_largest) mask = KeepLargestComponent(mask);
     if (options_.fill_holes) {
       if (scored != nullptr && options_.max_hole_area_px == 0) {
         const double middle = 0.5 * (scored->levels.object + scored->levels.backdrop);
-        mask = FillHolesUnlessBackdrop(mask, scored->score, middle, kMinOpenHolePx);
+        mask = FillHolesUnlessBackdrop(mask, scored->score, middle, kMinOpenHolePx / area_scale);
       } else {
-        mask = FillHolesUpTo(mask, options_.max_hole_area_px);
+        mask = FillHolesUpTo(mask, (options_.max_hole_area_px + area_scale - 1) / area_scale);
       }
     }
-    return cv::Mat(mask & roi);
+    return roi.empty() ? mask : cv::Mat(mask & roi);
   }
 
  private:
@@ -199,37 +230,41 @@ class PipelineSegmenter final : public Segmenter {
     return {};
   }
 
-  Expected<cv::Mat> Threshold(const cv::Mat& image, const cv::Mat& roi) const {
-    const cv::Mat grey = GreyLevels(image);
-    const bool dark_backdrop = options_.backdrop == "dark";
-    const int type = dark_backdrop ? cv::THRESH_BINARY : cv::THRESH_BINARY_INV;
-    double threshold = options_.threshold;
-    if (options_.method == "otsu") {
-      const OtsuSplit split = Otsu(grey, roi);
-      if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
-        return cv::Mat(cv::Mat::zeros(image.size(), CV_8UC1));
-      }
-      threshold = split.threshold;
-    } else if (!dark_backdrop) {
-      threshold -= 1.0;  // grey < threshold is object: THRESH_BINARY_INV keeps grey <= thresh
-    }
-    cv::Mat mask;
-    cv::threshold(grey, mask, threshold, 255.0, type);
-    return mask;
+  // otsu, fixed: the grey level, inverted on a light backdrop (object: higher).
+  Expected<cv::Mat> ObjectLevels(const cv::Mat& image) const {
+    cv::Mat grey = GreyLevels(image);
+    if (options_.backdrop == "dark") return grey;
+    cv::Mat inverted;
+    cv::bitwise_not(grey, inverted);
+    return inverted;
   }
 
-  Expected<cv::Mat> Difference(const cv::Mat& image, const cv::Mat& background,
-                               const cv::Mat& roi) const {
-    if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
-    const cv::Mat distance8 = ColourDistance(Bgr(image), Bgr(background));
-    double threshold = options_.difference_threshold;
-    if (threshold <= 0.0) {
-      const OtsuSplit split = Otsu(distance8, roi);
-      threshold = std::max<double>(split.threshold, options_.min_contrast);
+  // The score an object pixel reaches (at the work size); none when an Otsu split finds no
+  // object (an empty scene).
+  std::optional<double> ObjectLevel(const std::string& method, const cv::Mat& score,
+                                    const cv::Mat& roi) const {
+    if (method == "chroma") return 128.0;  // the chroma score is 0 or 255
+    if (method == "fixed") {
+      // dark: grey > threshold; light: grey < threshold, i.e. 255 - grey > 255 - threshold.
+      return options_.backdrop == "dark" ? options_.threshold + 1.0 : 256.0 - options_.threshold;
     }
-    cv::Mat mask;
-    cv::threshold(distance8, mask, threshold, 255.0, cv::THRESH_BINARY);
-    return mask;
+    if (method == "background" && options_.difference_threshold > 0.0) {
+      return std::floor(options_.difference_threshold) + 1.0;
+    }
+    const OtsuSplit split = Otsu(score, roi);
+    if (method == "background") {
+      return std::floor(std::max<double>(split.threshold, options_.min_contrast)) + 1.0;
+    }
+    if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
+      return std::nullopt;
+    }
+    return split.threshold + 1.0;
+  }
+
+  static cv::Mat ReducedRoi(const cv::Mat& roi, int factor) {
+    if (roi.empty() || factor == 1) return roi;
+    cv::Mat out = Reduced(roi, factor) >= 128;
+    return out;
   }
 
   Expected<cv::Mat> Chroma(const cv::Mat& image, const cv::Mat& roi) const {
@@ -256,15 +291,21 @@ class PipelineSegmenter final : public Segmenter {
                                    key[0], key[1], key[2]));
     }
     cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
+    // Share of the key's chroma in a pixel: 1 on the backdrop, ~0 on a neutral object, the
+    // object's share of coverage on an anti-aliased edge in between. Chroma is linear in B G R,
+    // so the share is w . (b, g, r) with w fixed by the key.
+    const auto chroma_b = ChromaOf(1, 0, 0), chroma_g = ChromaOf(0, 1, 0),
+               chroma_r = ChromaOf(0, 0, 1);
+    const float wb = static_cast<float>(chroma_b.dot(key_chroma) / key_norm2);
+    const float wg = static_cast<float>(chroma_g.dot(key_chroma) / key_norm2);
+    const float wr = static_cast<float>(chroma_r.dot(key_chroma) / key_norm2);
+    const float fraction = static_cast<float>(options_.chroma_fraction);
     for (int y = 0; y < bgr.rows; ++y) {
       const auto* p = bgr.ptr<cv::Vec3b>(y);
       auto* m = mask.ptr<std::uint8_t>(y);
       for (int x = 0; x < bgr.cols; ++x) {
-        const Eigen::Vector2d c = ChromaOf(p[x][0], p[x][1], p[x][2]);
-        // Share of the key's chroma in this pixel: 1 on the backdrop, ~0 on a neutral object,
-        // the object's share of coverage on an anti-aliased edge in between.
-        const double share = c.dot(key_chroma) / key_norm2;
-        m[x] = share < options_.chroma_fraction ? 255 : 0;
+        const float share = wb * p[x][0] + wg * p[x][1] + wr * p[x][2];
+        m[x] = share < fraction ? 255 : 0;
       }
     }
     return mask;
@@ -273,25 +314,6 @@ class PipelineSegmenter final : public Segmenter {
   static Eigen::Vector2d ChromaOf(double b, double g, double r) {
     const double luma = 0.299 * r + 0.587 * g + 0.114 * b;
     return {0.564 * (b - luma), 0.713 * (r - luma)};
-  }
-
-  // Per-pixel Euclidean distance of two BGR images, saturated to 8 bits.
-  static cv::Mat ColourDistance(const cv::Mat& a, const cv::Mat& b) {
-    cv::Mat out(a.size(), CV_8UC1);
-    for (int y = 0; y < a.rows; ++y) {
-      const auto* pa = a.ptr<cv::Vec3b>(y);
-      const auto* pb = b.ptr<cv::Vec3b>(y);
-      auto* o = out.ptr<std::uint8_t>(y);
-      for (int x = 0; x < a.cols; ++x) {
-        int sum = 0;
-        for (int c = 0; c < 3; ++c) {
-          const int d = int(pa[x][c]) - int(pb[x][c]);
-          sum += d * d;
-        }
-        o[x] = cv::saturate_cast<std::uint8_t>(std::sqrt(static_cast<double>(sum)));
-      }
-    }
-    return out;
   }
 
   SegmentOptions options_;
@@ -431,44 +453,58 @@ cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size) {
 }
 
 cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows) {
+  // sqrt(i) rounded and saturated, for the squared distances that stay below 255^2.
+  static const std::vector<std::uint8_t> root = [] {
+    std::vector<std::uint8_t> table(255 * 255 + 1);
+    for (std::size_t i = 0; i < table.size(); ++i) {
+      table[i] = cv::saturate_cast<std::uint8_t>(std::sqrt(static_cast<double>(i)));
+    }
+    return table;
+  }();
+  constexpr int kMaxSquare = 255 * 255;
   const bool per_pixel = backdrop_bgr.size() == bgr.size();
   cv::Mat out(bgr.size(), CV_8UC1);
   for (int y = 0; y < bgr.rows; ++y) {
-    const auto* p = bgr.ptr<cv::Vec3b>(y);
-    const auto* b = backdrop_bgr.ptr<cv::Vec3b>(per_pixel ? y : 0);
+    const auto* p = bgr.ptr<std::uint8_t>(y);
+    const auto* b = backdrop_bgr.ptr<std::uint8_t>(per_pixel ? y : 0);
     auto* o = out.ptr<std::uint8_t>(y);
-    for (int x = 0; x < bgr.cols; ++x) {
-      const cv::Vec3b& k = b[per_pixel ? x : 0];
-      float c[3], d[3];
-      float dot = 0.0f, norm2 = 0.0f, dist2 = 0.0f;
-      for (int i = 0; i < 3; ++i) {
-        c[i] = p[x][i];
-        d[i] = c[i] - float(k[i]);
-        dot += c[i] * float(k[i]);
-        norm2 += float(k[i]) * float(k[i]);
-        dist2 += d[i] * d[i];
+    if (!shadows) {  // the common case, kept free of branches
+      const std::ptrdiff_t step = per_pixel ? 3 : 0;
+      for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
+        const std::uint8_t* k = b + step * x;
+        const int d0 = p[3 * x] - k[0], d1 = p[3 * x + 1] - k[1], d2 = p[3 * x + 2] - k[2];
+        o[x] = root[static_cast<std::size_t>(std::min(d0 * d0 + d1 * d1 + d2 * d2, kMaxSquare))];
       }
-      float score = std::sqrt(dist2);
-      // A shadow: the backdrop's colour scaled down (or a little up); only its chroma counts.
-      if (shadows && norm2 > 900.0f) {
-        const float a = dot / norm2;
-        if (a >= 0.35f && a <= 1.1f) {
-          float off2 = 0.0f;
-          for (int i = 0; i < 3; ++i) {
-            const float e = c[i] - a * float(k[i]);
-            off2 += e * e;
-          }
-          score = std::min(score, 2.0f * std::sqrt(off2));
+      continue;
+    }
+    for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
+      const std::uint8_t* c = p + 3 * x;
+      const std::uint8_t* k = b + (per_pixel ? 3 * x : 0);
+      const int d0 = c[0] - k[0], d1 = c[1] - k[1], d2 = c[2] - k[2];
+      const int dist2 = d0 * d0 + d1 * d1 + d2 * d2;
+      std::uint8_t score = root[static_cast<std::size_t>(std::min(dist2, kMaxSquare))];
+      // A shadow: the backdrop's colour scaled by a (0.35..1.1); only its chroma counts, twice
+      // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2).
+      const int norm2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+      if (norm2 > 900) {
+        const int dot = c[0] * k[0] + c[1] * k[1] + c[2] * k[2];
+        if (20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
+          const int c2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+          const float off2 = std::max(0.0f, static_cast<float>(c2) - static_cast<float>(dot) *
+                                                                         static_cast<float>(dot) /
+                                                                         static_cast<float>(norm2));
+          const int four_off2 = static_cast<int>(std::min(4.0f * off2 + 0.5f, float(kMaxSquare)));
+          score = std::min(score, root[static_cast<std::size_t>(four_off2)]);
         }
       }
-      o[x] = cv::saturate_cast<std::uint8_t>(score);
+      o[x] = score;
     }
   }
   return out;
 }
 
 cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
-  cv::Rect box = cv::boundingRect(roi);
+  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
   if (box.area() == 0) box = cv::Rect(0, 0, image.cols, image.rows);
   std::array<std::vector<std::uint8_t>, 3> channels;
   auto add = [&](int x, int y) {

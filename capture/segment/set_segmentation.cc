@@ -20,6 +20,8 @@ constexpr double kStillGain = 0.1;
 constexpr int kMinStillFrames = 4;
 constexpr int kLearnMarginPx = 4;
 constexpr double kMaxObjectShare = 0.6;
+constexpr std::size_t kMinViewsForAreaCheck = 3;
+constexpr double kMinAreaShare = 0.2;
 
 template <class T>
 T Median(std::vector<T>& values) {
@@ -68,6 +70,25 @@ std::string ProblemOf(const cv::Mat& mask) {
         100.0 * outline);
   }
   return {};
+}
+
+// A mask far smaller than the set's others (a fold of the cloth in a frame without the object,
+// or a piece of the object) carves the whole model down to itself: it is named, and left out.
+void FlagSmallMasks(const std::vector<cv::Mat>& masks, std::vector<std::string>& problems) {
+  std::vector<int> areas;
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    if (problems[i].empty()) areas.push_back(cv::countNonZero(masks[i]));
+  }
+  if (areas.size() < kMinViewsForAreaCheck) return;
+  const double median = Median(areas);
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    const int area = cv::countNonZero(masks[i]);
+    if (!problems[i].empty() || area >= kMinAreaShare * median) continue;
+    problems[i] = fmt::format(
+        "its mask holds {} px, {:.0f} % of the median view's {:.0f} px: probably a patch of the "
+        "backdrop or only a part of the object",
+        area, 100.0 * area / median, median);
+  }
 }
 
 Expected<cv::Mat> ReadBackground(const SegmentOptions& options, cv::Size size) {
@@ -152,6 +173,11 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   return survey;
 }
 
+bool BackdropWorthLearning(const BackdropSurvey& survey, std::size_t frames) {
+  return frames >= kMinStillFrames && survey.outline_stillness >= kStillOutline &&
+         survey.outline_stillness - survey.outline_uniformity >= kStillGain;
+}
+
 cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::Mat>& masks,
                       int margin_px, const cv::Scalar& fallback) {
   const cv::Size size = frames.front().size();
@@ -199,9 +225,7 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   SetSegmentation result;
   result.survey = SurveyBackdrop(frames);
   const BackdropSurvey& survey = result.survey;
-  const bool still = frames.size() >= kMinStillFrames &&
-                     survey.outline_stillness >= kStillOutline &&
-                     survey.outline_stillness - survey.outline_uniformity >= kStillGain;
+  const bool still = BackdropWorthLearning(survey, frames.size());
   SegmentOptions run = options;
   result.method = options.method;
   result.reason = "given";
@@ -250,7 +274,71 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   if (!masks) return std::unexpected(masks.error());
   result.masks = std::move(*masks);
   for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));
+  FlagSmallMasks(result.masks, result.problems);
   return result;
+}
+
+Expected<StopBackdropLearner> StopBackdropLearner::Create(const SegmentOptions& options) {
+  if (options.method != "background" && options.method != "auto") {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("segmentation: the backdrop is learned for method \"background\" "
+                                 "or \"auto\", not \"{}\"",
+                                 options.method));
+  }
+  // auto, per frame without a background: chroma on a coloured backdrop, else graphcut.
+  SegmentOptions rough = options;
+  rough.method = options.method == "auto" ? "auto" : "graphcut";
+  SegmentOptions learned = options;
+  learned.method = "background";
+  learned.refine = options.refine || options.method == "auto";
+  Expected<std::unique_ptr<Segmenter>> rough_segmenter = CreateSegmenter(rough);
+  if (!rough_segmenter) return std::unexpected(rough_segmenter.error());
+  Expected<std::unique_ptr<Segmenter>> learned_segmenter = CreateSegmenter(learned);
+  if (!learned_segmenter) return std::unexpected(learned_segmenter.error());
+  StopBackdropLearner learner;
+  learner.always_ = options.method == "background";
+  learner.rough_ = std::move(*rough_segmenter);
+  learner.learned_ = std::move(*learned_segmenter);
+  learner.method_ = rough.method;
+  learner.reason_ = fmt::format(
+      "no frame of the empty scene: the first {} stops are cut by {} and the backdrop "
+      "learned from them{}",
+      kLearnStops, rough.method == "auto" ? "graphcut (chroma on a coloured backdrop)" : "graphcut",
+      learner.always_ ? "" : " if the camera stands still over an uneven backdrop");
+  return learner;
+}
+
+Expected<cv::Mat> StopBackdropLearner::Segment(const cv::Mat& frame) const {
+  return backdrop_.empty() ? rough_->Segment(frame, cv::Mat())
+                           : learned_->Segment(frame, backdrop_);
+}
+
+bool StopBackdropLearner::Add(const cv::Mat& frame, const cv::Mat& mask) {
+  if (decided_ || frame.type() != CV_8UC3 || cv::countNonZero(mask) == 0) return false;
+  if (!frames_.empty() && frame.size() != frames_.front().size()) return false;
+  frames_.push_back(frame.clone());
+  masks_.push_back(mask.clone());
+  if (frames_.size() < static_cast<std::size_t>(kLearnStops)) return false;
+  decided_ = true;
+  const BackdropSurvey survey = SurveyBackdrop(frames_);
+  const std::string seen = fmt::format(
+      "{} stops: a {} backdrop, {:.0f} % of the outline keeps its colour, {:.0f} % is within 12 "
+      "levels of the median",
+      frames_.size(), survey.kind, 100.0 * survey.outline_stillness,
+      100.0 * survey.outline_uniformity);
+  const bool learn = always_ || BackdropWorthLearning(survey, frames_.size());
+  if (learn) {
+    backdrop_ = LearnBackdrop(frames_, masks_, kLearnMarginPx, survey.bgr);
+    method_ = "background";
+    reason_ = seen +
+              ": the backdrop learned from them (per-pixel median where graphcut saw no "
+              "object); the later stops are cut against it";
+  } else {
+    reason_ = seen + ": an even backdrop or a moving camera, so every stop is cut by its colour";
+  }
+  frames_.clear();
+  masks_.clear();
+  return learn;
 }
 
 }  // namespace revolve::capture

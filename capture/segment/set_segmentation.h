@@ -3,6 +3,7 @@
 // stands still, and a reason for every view whose mask looks wrong.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,10 @@ struct BackdropSurvey {
 // Contract: at least one frame; all CV_8UC3 of one size.
 BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames);
 
+// Whether a backdrop is worth learning per pixel: a still camera (outline_stillness >= 0.9) over
+// an uneven backdrop (stillness at least 0.1 above outline_uniformity), from 4 frames or more.
+bool BackdropWorthLearning(const BackdropSurvey& survey, std::size_t frames);
+
 // The backdrop learned from the sequence: per pixel, the median colour of the frames whose
 // `masks` (CV_8UC1, non-zero = object, dilated by `margin_px`) leave the pixel uncovered; pixels
 // covered in every frame take `fallback`. Contract: frames CV_8UC3, masks CV_8UC1, same sizes.
@@ -52,9 +57,52 @@ struct SetSegmentation {
 // learned from those masks (LearnBackdrop) and background with refinement; otherwise graphcut.
 // Any other method runs as configured (background without background_file learns the backdrop
 // as auto does). A frame's problem: no object found; the object covers over 60 % of the frame;
-// the object touches the frame's edge on more than half of its outline. Errors: bad_input for
+// the object touches the frame's edge on more than half of its outline; the mask is under 20 %
+// of the median area of the set's other masks (3 or more). Errors: bad_input for
 // invalid options or frames, or background_file unreadable or of another size (naming it).
 Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
                                           const SegmentOptions& options);
+
+// A scan's stops segmented as they arrive, with the backdrop learned from the first ones (a live
+// scan has no sequence to survey beforehand). Used without a frame of the empty scene, for
+// method "background" (the camera cannot capture the empty scene) and "auto":
+// - the first kLearnStops stops kept with an object are cut by graphcut (auto: chroma on a
+//   coloured backdrop), against the backdrop's colour per frame;
+// - then the backdrop is learned from them (LearnBackdrop), for "auto" only when their survey
+//   finds a still camera over an uneven backdrop (BackdropWorthLearning), and the later stops are
+//   cut against it: "background", refined by the graph cut for "auto" or refine = true.
+// Pixels the object covers in all those stops take the outline's median colour.
+class StopBackdropLearner {
+ public:
+  static constexpr int kLearnStops = 4;
+
+  // Errors: bad_input for a method other than background or auto, or invalid options.
+  static Expected<StopBackdropLearner> Create(const SegmentOptions& options);
+
+  // The frame's mask (CV_8UC1 0/255) by the current method. Errors: as Segmenter::Segment.
+  Expected<cv::Mat> Segment(const cv::Mat& frame) const;
+
+  // A kept stop (after the quality gates): learned from until kLearnStops are in. Returns true
+  // when the backdrop has just been learned (the method changes to background). Frames that are
+  // not 8-bit BGR or not of the first frame's size are not learned from.
+  bool Add(const cv::Mat& frame, const cv::Mat& mask);
+
+  const std::string& method() const { return method_; }  // graphcut/auto, then background
+  const std::string& reason() const { return reason_; }  // why, for the log and report
+  const cv::Mat& backdrop() const { return backdrop_; }  // empty until learned
+
+ private:
+  StopBackdropLearner() = default;
+
+  bool always_ = false;  // method background: learn whatever the survey says
+  bool decided_ = false;
+  std::unique_ptr<Segmenter> rough_;
+  std::unique_ptr<Segmenter> learned_;
+  std::vector<cv::Mat> frames_;
+  std::vector<cv::Mat> masks_;
+  cv::Mat backdrop_;
+  std::string method_;
+  std::string reason_;
+};
 
 }  // namespace revolve::capture

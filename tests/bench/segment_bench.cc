@@ -1,5 +1,6 @@
 // Segmentation of one 1280x960 frame on one core (issue 17's bars: <= 10 ms for the live
-// methods, <= 60 ms with the graph-cut refinement). The frame is a real photograph
+// methods, <= 60 ms with the graph-cut refinement); 640x480 for comparison.
+// Run: taskset -c 0 build/tests/bench/segment_bench The frame is a real photograph
 // (shared/data templeSparseRing view 1: plaster on a dark, uneven cloth stand) scaled up to
 // 1280x960; without the shared data, a drawn frame of the same kind.
 #include <benchmark/benchmark.h>
@@ -15,7 +16,7 @@
 
 namespace {
 
-cv::Mat Frame() {
+cv::Mat Frame(cv::Size size) {
   const std::filesystem::path photo = std::filesystem::path(REVOLVE_SHARED_DIR) /
                                       "data/middlebury-templeSparseRing/templeSR0001.png";
   cv::Mat image = cv::imread(photo.string(), cv::IMREAD_COLOR);
@@ -26,16 +27,20 @@ cv::Mat Frame() {
                 cv::FILLED);
   }
   cv::Mat frame;
-  cv::resize(image, frame, cv::Size(1280, 960), 0.0, 0.0, cv::INTER_LINEAR);
+  cv::resize(image, frame, size, 0.0, 0.0, cv::INTER_LINEAR);
   return frame;
 }
 
-void BM_Segment(benchmark::State& state, const std::string& method) {
-  cv::setNumThreads(1);
-  const cv::Mat frame = Frame();
+// state.range(0): the frame's width (1280: the bars; 640: the Middlebury photos' size).
+void BM_Segment(benchmark::State& state, const std::string& method, bool refine) {
+  cv::setNumThreads(1);  // one core, as the bars say
+  const int width = static_cast<int>(state.range(0));
+  const cv::Mat frame = Frame(cv::Size(width, width * 3 / 4));
+  // A flat dark frame for the empty scene (the difference is then the frame's own levels).
   cv::Mat background(frame.size(), CV_8UC3, cv::Scalar(8, 8, 8));
   revolve::capture::SegmentOptions options;
   options.method = method;
+  options.refine = refine;
   auto segmenter = revolve::capture::CreateSegmenter(options);
   if (!segmenter) {
     state.SkipWithError(segmenter.error().message.c_str());
@@ -47,10 +52,17 @@ void BM_Segment(benchmark::State& state, const std::string& method) {
   }
 }
 
-BENCHMARK_CAPTURE(BM_Segment, otsu, std::string("otsu"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Segment, background, std::string("background"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Segment, graphcut, std::string("graphcut"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Segment, auto, std::string("auto")) -> Unit(benchmark::kMillisecond);
+void Sizes(benchmark::internal::Benchmark* b) {
+  b->Arg(1280)->Arg(640)->Unit(benchmark::kMillisecond);
+}
+
+// Live methods (bar: <= 10 ms at 1280x960).
+BENCHMARK_CAPTURE(BM_Segment, otsu, std::string("otsu"), false)->Apply(Sizes);
+BENCHMARK_CAPTURE(BM_Segment, background, std::string("background"), false)->Apply(Sizes);
+// With the graph-cut refinement (bar: <= 60 ms at 1280x960).
+BENCHMARK_CAPTURE(BM_Segment, background_refined, std::string("background"), true)->Apply(Sizes);
+BENCHMARK_CAPTURE(BM_Segment, graphcut, std::string("graphcut"), false)->Apply(Sizes);
+BENCHMARK_CAPTURE(BM_Segment, auto, std::string("auto"), false) -> Apply(Sizes);
 
 }  // namespace
 

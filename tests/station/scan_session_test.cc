@@ -1,6 +1,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -12,6 +13,11 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/synthetic/synthetic_camera.h"
 #include "station/scan_session.h"
 
 namespace revolve::station {
@@ -302,6 +308,89 @@ TEST_F(ScanSessionTest, TheBackgroundMethodTakesTheEmptySceneFromAFile) {
       << result.error().message;
   EXPECT_NE(result.error().message.find(empty.string()), std::string::npos);
   EXPECT_EQ(ReadJson(dir_ / "manifest.json")["state"], "failed");
+}
+
+// A smooth random field in [low, high] (the folds of a dark cloth), grey with a slight tint.
+cv::Mat Cloth(cv::Size size, double low, double high, std::uint64_t seed) {
+  cv::RNG rng(seed);
+  cv::Mat coarse(size.height / 24 + 2, size.width / 24 + 2, CV_32F);
+  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
+  cv::Mat field;
+  cv::resize(coarse, field, size, 0.0, 0.0, cv::INTER_CUBIC);
+  cv::GaussianBlur(field, field, {0, 0}, 6.0);
+  cv::normalize(field, field, low, high, cv::NORM_MINMAX);
+  cv::Mat grey;
+  field.convertTo(grey, CV_8U);
+  cv::Mat bgr;
+  cv::merge(std::vector<cv::Mat>{grey + 6, grey, grey + 3}, bgr);
+  return bgr;
+}
+
+double IoU(const cv::Mat& a, const cv::Mat& b) {
+  const double inter = cv::countNonZero(a & b);
+  const double uni = cv::countNonZero(a | b);
+  return uni > 0 ? inter / uni : 1.0;
+}
+
+// A real camera cannot capture the empty scene, and without [segment] background_file the
+// backdrop is learned from the first stops as they arrive: a replayed turntable sequence (a vase
+// over an uneven dark cloth, no background image) scanned with method background and auto.
+TEST_F(ScanSessionTest, WithoutAnEmptySceneTheBackdropIsLearnedFromTheFirstStops) {
+  constexpr int kStops = 8;
+  const fs::path frames = dir_.string() + "_frames";
+  fs::create_directories(frames);
+  capture::SyntheticOptions o;
+  o.object = "vase";
+  o.width_px = 320;
+  o.height_px = 240;
+  o.noise_sigma = 0.0;
+  o.backdrop_bgr = {0, 0, 0};
+  auto camera = capture::SyntheticCamera::Create(o, std::make_shared<SimulatedPlate>());
+  ASSERT_TRUE(camera.has_value()) << camera.error().message;
+  const cv::Mat cloth = Cloth(cv::Size(320, 240), 6.0, 90.0, 23);
+  std::vector<cv::Mat> truths;
+  for (int k = 0; k < kStops; ++k) {
+    const capture::RenderOutput render = (*camera)->RenderWithTruth(k * 360.0 / kStops, k);
+    cv::Mat photo = cloth.clone();
+    render.image.copyTo(photo, render.true_mask);
+    truths.push_back(render.true_mask);
+    ASSERT_TRUE(cv::imwrite((frames / fmt::format("stop_{:03}.png", k)).string(), photo));
+  }
+  for (const std::string method : {"background", "auto"}) {
+    SCOPED_TRACE(method);
+    fs::remove_all(dir_);
+    StationConfig cfg = QuickConfig(kStops);
+    cfg.camera.backend = "replay";
+    cfg.camera.replay.dir = frames.string();
+    cfg.camera.replay.pattern = "stop_{index:03}.png";
+    cfg.camera.replay.step_deg = 360.0 / kStops;
+    cfg.segment.method = method;
+    std::vector<std::string> notes;
+    auto result = RunScan(cfg, CollectNotes(&notes));
+    ASSERT_TRUE(result.has_value()) << result.error().message;
+    const auto manifest = ReadJson(dir_ / "manifest.json");
+    ASSERT_TRUE(manifest.contains("segmentation")) << manifest.dump();
+    EXPECT_EQ(manifest["segmentation"]["method"], "background") << manifest["segmentation"];
+    EXPECT_EQ(manifest["segmentation"]["learned_after_stop"], 3);
+    EXPECT_EQ(result->report["segmentation"], manifest["segmentation"]);
+    EXPECT_TRUE(fs::exists(dir_ / "frames" / "background.png"));
+    EXPECT_TRUE(std::any_of(notes.begin(), notes.end(), [](const std::string& n) {
+      return n.find("backdrop learned") != std::string::npos;
+    })) << fmt::format("{}", fmt::join(notes, "\n"));
+    double sum = 0.0;
+    for (int k = 0; k < kStops; ++k) {
+      const cv::Mat mask = cv::imread(
+          (dir_ / "masks" / manifest["stops"][k]["mask"].get<std::string>().substr(6)).string(),
+          cv::IMREAD_GRAYSCALE);
+      ASSERT_FALSE(mask.empty()) << k;
+      const double iou = IoU(mask, truths[static_cast<std::size_t>(k)]);
+      EXPECT_GE(iou, 0.97) << "stop " << k;
+      if (k >= 4) sum += iou;
+    }
+    std::printf("%s: stops 4..7 (against the learned backdrop) mean IoU %.4f\n", method.c_str(),
+                sum / 4.0);
+  }
+  fs::remove_all(frames);
 }
 
 TEST_F(ScanSessionTest, ADriveAlarmFailsTheScanWithTheAlarmCode) {

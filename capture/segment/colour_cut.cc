@@ -1,0 +1,213 @@
+#include "capture/segment/colour_cut.h"
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/imgproc/detail/gcgraph.hpp>
+
+namespace revolve::capture {
+namespace {
+
+constexpr int kLevels = 16;
+
+// An index computed in int (image sizes fit), as a container subscript.
+std::size_t At(int index) { return static_cast<std::size_t>(index); }
+constexpr int kBins = kLevels * kLevels * kLevels;
+
+// Colour level (0..15) of an 8-bit value on a square-root scale: levels 0..3 cover 0..15, so the
+// dark shadows of an object stay apart from a black backdrop.
+std::array<std::uint16_t, 256> LevelTable() {
+  std::array<std::uint16_t, 256> table{};
+  for (int v = 0; v < 256; ++v) {
+    table[static_cast<std::size_t>(v)] = static_cast<std::uint16_t>(
+        std::min(kLevels - 1, static_cast<int>(std::sqrt(v / 255.0) * kLevels)));
+  }
+  return table;
+}
+
+// A histogram smoothed by [1 2 1] / 4 along each axis (neighbouring levels share their counts).
+std::vector<float> Smoothed(const std::vector<float>& histogram) {
+  std::vector<float> a = histogram, b(kBins);
+  const int strides[3] = {1, kLevels, kLevels * kLevels};
+  for (const int stride : strides) {
+    for (int i = 0; i < kBins; ++i) {
+      const int level = (i / stride) % kLevels;
+      const float left = level > 0 ? a[At(i - stride)] : a[static_cast<std::size_t>(i)];
+      const float right = level + 1 < kLevels ? a[At(i + stride)] : a[static_cast<std::size_t>(i)];
+      b[static_cast<std::size_t>(i)] =
+          0.25f * left + 0.5f * a[static_cast<std::size_t>(i)] + 0.25f * right;
+    }
+    a.swap(b);
+  }
+  return a;
+}
+
+// -log of each bin's share of the histogram (one count added to every bin: a colour never seen
+// costs the same finite amount in both models).
+std::vector<float> Costs(const std::vector<float>& histogram) {
+  const std::vector<float> smooth = Smoothed(histogram);
+  double total = 0.0;
+  for (float h : smooth) total += h + 1.0f;
+  std::vector<float> cost(kBins);
+  for (int i = 0; i < kBins; ++i) {
+    cost[static_cast<std::size_t>(i)] =
+        static_cast<float>(-std::log((smooth[static_cast<std::size_t>(i)] + 1.0) / total));
+  }
+  return cost;
+}
+
+// Capacities in fixed point (1/64): the max-flow's augmenting paths end on exact zeros.
+int Fixed(float weight) { return static_cast<int>(std::lround(64.0f * weight)); }
+
+bool IsObject(std::uint8_t label) { return label == cv::GC_FGD || label == cv::GC_PR_FGD; }
+bool IsSure(std::uint8_t label) { return label == cv::GC_FGD || label == cv::GC_BGD; }
+
+int SquaredDistance(const cv::Vec3b& a, const cv::Vec3b& b) {
+  const int d0 = int(a[0]) - int(b[0]), d1 = int(a[1]) - int(b[1]), d2 = int(a[2]) - int(b[2]);
+  return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+// The graph's fixed part: the undecided pixels, the cuts between them and what their sure
+// neighbours pull towards either side.
+struct Band {
+  std::vector<int> pixel;          // vertex -> pixel index (y * cols + x)
+  std::vector<float> to_object;    // vertex -> summed weights of sure-object neighbours
+  std::vector<float> to_backdrop;  // vertex -> summed weights of sure-backdrop neighbours
+  struct Link {
+    int a, b;
+    float weight;
+  };
+  std::vector<Link> links;
+};
+
+// The 4 neighbours already visited in raster order (left, up-left, up, up-right), with the
+// distance weight of each.
+constexpr int kBackDx[4] = {-1, -1, 0, 1};
+constexpr int kBackDy[4] = {0, -1, -1, -1};
+
+double Beta(const cv::Mat& bgr) {
+  double sum = 0.0;
+  std::int64_t count = 0;
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    const auto* up = y > 0 ? bgr.ptr<cv::Vec3b>(y - 1) : nullptr;
+    for (int x = 0; x < bgr.cols; ++x) {
+      for (int k = 0; k < 4; ++k) {
+        const int nx = x + kBackDx[k];
+        if (nx < 0 || nx >= bgr.cols || (kBackDy[k] < 0 && up == nullptr)) continue;
+        const cv::Vec3b& q = kBackDy[k] < 0 ? up[nx] : p[nx];
+        sum += SquaredDistance(p[x], q);
+        ++count;
+      }
+    }
+  }
+  return sum > 0.0 ? 1.0 / (2.0 * sum / static_cast<double>(count)) : 0.0;
+}
+
+Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& options,
+            std::vector<int>& vertex_of) {
+  Band band;
+  const double beta = Beta(bgr);
+  const float diagonal = static_cast<float>(options.smoothness / std::sqrt(2.0));
+  const float straight = static_cast<float>(options.smoothness);
+  vertex_of.assign(static_cast<std::size_t>(bgr.total()), -1);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* l = labels.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      if (IsSure(l[x])) continue;
+      vertex_of[At(y * bgr.cols + x)] = static_cast<int>(band.pixel.size());
+      band.pixel.push_back(y * bgr.cols + x);
+    }
+  }
+  band.to_object.assign(band.pixel.size(), 0.0f);
+  band.to_backdrop.assign(band.pixel.size(), 0.0f);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    const auto* l = labels.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const int v = vertex_of[At(y * bgr.cols + x)];
+      for (int k = 0; k < 4; ++k) {
+        const int nx = x + kBackDx[k], ny = y + kBackDy[k];
+        if (nx < 0 || nx >= bgr.cols || ny < 0) continue;
+        const int u = vertex_of[At(ny * bgr.cols + nx)];
+        if (v < 0 && u < 0) continue;
+        const float weight =
+            (kBackDy[k] != 0 && kBackDx[k] != 0 ? diagonal : straight) *
+            static_cast<float>(std::exp(-beta * SquaredDistance(p[x], bgr.ptr<cv::Vec3b>(ny)[nx])));
+        if (v >= 0 && u >= 0) {
+          band.links.push_back({v, u, weight});
+        } else if (v >= 0) {
+          (labels.ptr<std::uint8_t>(ny)[nx] == cv::GC_FGD
+               ? band.to_object
+               : band.to_backdrop)[static_cast<std::size_t>(v)] += weight;
+        } else {
+          (l[x] == cv::GC_FGD ? band.to_object : band.to_backdrop)[static_cast<std::size_t>(u)] +=
+              weight;
+        }
+      }
+    }
+  }
+  return band;
+}
+
+}  // namespace
+
+bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& options) {
+  static const std::array<std::uint16_t, 256> level = LevelTable();
+  cv::Mat bins(bgr.size(), CV_16UC1);
+  bool has_object = false, has_backdrop = false;
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    const auto* l = labels.ptr<std::uint8_t>(y);
+    auto* b = bins.ptr<std::uint16_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      b[x] = static_cast<std::uint16_t>(level[p[x][0]] + kLevels * level[p[x][1]] +
+                                        kLevels * kLevels * level[p[x][2]]);
+      (IsObject(l[x]) ? has_object : has_backdrop) = true;
+    }
+  }
+  if (!has_object || !has_backdrop) return false;
+  std::vector<int> vertex_of;
+  const Band band = BandOf(bgr, labels, options, vertex_of);
+  if (band.pixel.empty()) return true;
+  const auto* bin = bins.ptr<std::uint16_t>(0);  // continuous: created above
+  const bool continuous = labels.isContinuous();
+  cv::Mat work = continuous ? labels : labels.clone();
+  auto* label = work.ptr<std::uint8_t>(0);
+  for (int iteration = 0; iteration < options.iterations; ++iteration) {
+    std::vector<float> object(kBins, 0.0f), backdrop(kBins, 0.0f);
+    for (std::size_t i = 0; i < bgr.total(); ++i) {
+      (IsObject(label[i]) ? object : backdrop)[bin[i]] += 1.0f;
+    }
+    const std::vector<float> object_cost = Costs(object);
+    const std::vector<float> backdrop_cost = Costs(backdrop);
+    cv::detail::GCGraph<int> graph(static_cast<unsigned>(band.pixel.size()),
+                                   static_cast<unsigned>(2 * band.links.size()));
+    for (std::size_t v = 0; v < band.pixel.size(); ++v) {
+      const std::uint16_t b = bin[band.pixel[v]];
+      graph.addVtx();
+      // Source = object: cutting a pixel from the source costs its backdrop cost, and its sure
+      // object neighbours' links.
+      graph.addTermWeights(static_cast<int>(v), Fixed(backdrop_cost[b] + band.to_object[v]),
+                           Fixed(object_cost[b] + band.to_backdrop[v]));
+    }
+    for (const Band::Link& link : band.links)
+      graph.addEdges(link.a, link.b, Fixed(link.weight), Fixed(link.weight));
+    graph.maxFlow();
+    bool changed = false;
+    for (std::size_t v = 0; v < band.pixel.size(); ++v) {
+      const std::uint8_t now =
+          graph.inSourceSegment(static_cast<int>(v)) ? cv::GC_PR_FGD : cv::GC_PR_BGD;
+      changed |= label[band.pixel[v]] != now;
+      label[band.pixel[v]] = now;
+    }
+    if (!changed) break;
+  }
+  if (!continuous) work.copyTo(labels);
+  return true;
+}
+
+}  // namespace revolve::capture
