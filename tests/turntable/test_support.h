@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -118,12 +119,15 @@ inline bool HaveProgram(const char* path) { return ::access(path, X_OK) == 0; }
 inline constexpr char kSocat[] = "/usr/bin/socat";
 inline constexpr char kPython[] = "/usr/bin/python3";
 
-// A fresh pseudo-terminal pair made by socat: `a` and `b` are linked to each other.
+// A fresh pseudo-terminal pair made by socat: `a` and `b` are linked to each other. Each pair
+// has links of its own names: a pair made right after another in the same folder must not find
+// the previous socat's links (left while it exits, or pointing at a pts number now reused).
 class PtyPair {
  public:
   explicit PtyPair(const fs::path& dir)
-      : a_(dir / "pty_a"),
-        b_(dir / "pty_b"),
+      : serial_(NextSerial()),
+        a_(dir / ("pty_a" + std::to_string(serial_))),
+        b_(dir / ("pty_b" + std::to_string(serial_))),
         socat_({kSocat, "-d", "-d", "pty,raw,echo=0,link=" + a_.string(),
                 "pty,raw,echo=0,link=" + b_.string()},
                dir / "socat") {
@@ -135,6 +139,12 @@ class PtyPair {
   std::string Logs() const { return socat_.Logs(); }
 
  private:
+  static int NextSerial() {
+    static std::atomic<int> next{0};
+    return next++;
+  }
+
+  int serial_;
   fs::path a_;
   fs::path b_;
   ChildProcess socat_;
