@@ -248,10 +248,10 @@ struct DecodedImage {
 };
 
 // Reads `image`'s file into image->image (photos, BGR) and image->mask (silhouettes, and photos
-// when options.segment_photos), refusing another size than `expected_size` (the first image's,
-// named `first_name`) from the header.
+// when options.segment_photos), refusing another size than `expected_size` (the set's, described
+// by `size_source` for the message) from the header.
 DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
-                            std::optional<cv::Size> expected_size, const std::string& first_name) {
+                            std::optional<cv::Size> expected_size, const std::string& size_source) {
   DecodedImage result;
   Expected<cv::Mat> pixels = ReadImage8(image->path, options.max_image_pixels, expected_size);
   if (!pixels) {
@@ -261,10 +261,10 @@ DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
   result.size = pixels->size();
   if (expected_size && result.size != *expected_size) {
     result.error = MakeError(ErrorCode::kBadInput,
-                             fmt::format("{}: {}x{} pixels, but {} is {}x{} (all images of a set "
+                             fmt::format("{}: {}x{} pixels, but {} {}x{} (all images of a set "
                                          "must have one size)",
                                          image->path.string(), pixels->cols, pixels->rows,
-                                         first_name, expected_size->width, expected_size->height))
+                                         size_source, expected_size->width, expected_size->height))
                        .error();
     return result;
   }
@@ -283,6 +283,51 @@ DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
   }
   result.empty_mask = cv::countNonZero(image->mask) == 0;
   return result;
+}
+
+// The size most of the set's headers give (checked, not decoded), and how to name it in a
+// message: one odd image is then reported as the odd one, wherever it stands in the set. Empty
+// when no header can be read (the decoder then reports the first file's error).
+struct SetSize {
+  cv::Size size;
+  std::string source;  // "the other 35 images are", "view_000.png is"
+};
+std::optional<SetSize> MajoritySize(const std::vector<SetImage>& images, std::int64_t max_pixels) {
+  std::vector<std::optional<cv::Size>> sizes(images.size());
+  ParallelFor(0, images.size(), [&](std::size_t i) {
+    Expected<ImageHeader> header = ReadImageHeader(images[i].path, max_pixels);
+    if (header) {
+      sizes[i] = cv::Size(static_cast<int>(header->width_px), static_cast<int>(header->height_px));
+    }
+  });
+  std::optional<cv::Size> best;
+  std::size_t best_count = 0;
+  std::size_t best_first = 0;
+  for (std::size_t i = 0; i < sizes.size(); ++i) {
+    if (!sizes[i]) continue;
+    const auto count = static_cast<std::size_t>(std::count(sizes.begin(), sizes.end(), sizes[i]));
+    if (count > best_count) {
+      best = sizes[i];
+      best_count = count;
+      best_first = i;
+    }
+  }
+  if (!best) return std::nullopt;
+  if (best_count == 1) return SetSize{*best, images[best_first].file_name + " is"};
+  return SetSize{*best, fmt::format("{} of the {} images ({} first) are", best_count, images.size(),
+                                    images[best_first].file_name)};
+}
+
+// The kind most images are; a tie goes to the first image's.
+ImageKind MajorityKind(const std::vector<DecodedImage>& decoded) {
+  const auto silhouettes = std::count_if(decoded.begin(), decoded.end(), [](const DecodedImage& d) {
+    return d.kind == ImageKind::kSilhouette;
+  });
+  const auto photos = static_cast<std::ptrdiff_t>(decoded.size()) - silhouettes;
+  if (silhouettes != photos) {
+    return silhouettes > photos ? ImageKind::kSilhouette : ImageKind::kPhoto;
+  }
+  return decoded[0].kind;
 }
 
 }  // namespace
@@ -371,21 +416,24 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
     }
   }
 
-  // The first image gives the size; the others are decoded on all cores, each into its own slot,
-  // and checked in order afterwards, so the error reported is that of the first bad file.
+  // Most headers give the size and most images the kind, so that an odd image is named as such
+  // wherever it stands. The images are decoded on all cores, each into its own slot, and checked
+  // in order afterwards, so the error reported is that of the first bad file.
+  const std::optional<SetSize> size = MajoritySize(set.images, options.max_image_pixels);
   std::vector<DecodedImage> decoded(set.images.size());
-  decoded[0] = DecodeSetImage(&set.images[0], options, std::nullopt, {});
-  if (decoded[0].error) return std::unexpected(*decoded[0].error);
+  ParallelFor(0, set.images.size(), [&](std::size_t i) {
+    decoded[i] =
+        DecodeSetImage(&set.images[i], options, size ? std::optional(size->size) : std::nullopt,
+                       size ? size->source : std::string());
+  });
+  for (const DecodedImage& d : decoded) {
+    if (d.error) return std::unexpected(*d.error);
+  }
   set.width_px = decoded[0].size.width;
   set.height_px = decoded[0].size.height;
-  set.kind = decoded[0].kind;
-  const cv::Size size = decoded[0].size;
-  ParallelFor(1, set.images.size(), [&](std::size_t i) {
-    decoded[i] = DecodeSetImage(&set.images[i], options, size, set.images[0].file_name);
-  });
+  set.kind = MajorityKind(decoded);
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     const SetImage& image = set.images[i];
-    if (decoded[i].error) return std::unexpected(*decoded[i].error);
     if (decoded[i].kind != set.kind) {
       return MakeError(
           ErrorCode::kBadInput,

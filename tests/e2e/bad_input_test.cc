@@ -396,6 +396,33 @@ TEST_F(BadInputTest, ATruncatedJpegAmongTheImagesIsNamed) {
   EXPECT_FALSE(fs::exists(dir_ / "o"));
 }
 
+// The odd image is named, even when it is the first: the set's size and kind are those of most
+// of its images, not of whichever comes first.
+TEST_F(BadInputTest, AnOddFirstImageIsTheOneNamed) {
+  const fs::path images = dir_ / "views";
+  WriteViews(images, ".png");
+  cv::Mat small(60, 80, CV_8UC3, cv::Scalar::all(0));
+  cv::circle(small, {40, 30}, 20, {220, 200, 180}, -1);
+  cv::imwrite((images / "view_000.png").string(), small);
+  RunResult r = Revolve(
+      "reconstruct --images " + images.string() + " --step-deg 45 --out " + (dir_ / "o").string(),
+      dir_);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, kExitSoftware);
+  EXPECT_THAT(r.err,
+              HasSubstr("view_000.png: is 80 x 60 pixels, but the other images are 160 x 120"));
+
+  // A binary silhouette first among photos: the silhouette is the odd one.
+  cv::Mat silhouette(120, 160, CV_8UC1, cv::Scalar::all(0));
+  cv::circle(silhouette, {80, 60}, 30, cv::Scalar::all(255), -1);
+  cv::imwrite((images / "view_000.png").string(), silhouette);
+  r = Revolve(
+      "reconstruct --images " + images.string() + " --step-deg 45 --out " + (dir_ / "o").string(),
+      dir_);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_THAT(r.err, HasSubstr("view_000.png: a binary silhouette among photos"));
+}
+
 // A box no voxel grid can span is a typing error, refused before any work.
 TEST_F(BadInputTest, AnAbsurdBoxIsRefused) {
   const fs::path images = dir_ / "views";

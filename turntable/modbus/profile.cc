@@ -335,15 +335,13 @@ const Command* DriveProfile::FindCommand(std::string_view command_name) const {
   return it == commands.end() ? nullptr : &it->second;
 }
 
-Expected<DriveProfile> ParseProfile(const config::Document& document, std::string name) {
-  DriveProfile profile;
-  profile.name = std::move(name);
-  profile.origin = document.origin;
-  const config::Section root = config::Section::Root(document);
-  auto child = [&root](std::string_view key) { return root.Child(key); };
+// The steps of ParseProfile, one per table; each fills its part of `profile` or names the key.
+namespace {
 
-  // [profile]
-  Expected<config::Section> head = child("profile");
+// [profile]: description, steps_per_rev (required), word order.
+Expected<void> ParseHead(const config::Document& /*document*/, const config::Section& root,
+                         DriveProfile& profile) {
+  Expected<config::Section> head = root.Child("profile");
   if (!head) return std::unexpected(head.error());
   Expected<std::string> description = head->String("description", profile.name);
   if (!description) return std::unexpected(description.error());
@@ -361,9 +359,13 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
   if (Expected<void> known = head->CheckNoUnknownKeys(); !known) {
     return std::unexpected(known.error());
   }
+  return {};
+}
 
-  // [params]
-  Expected<config::Section> params = child("params");
+// [params]: named numbers the commands may use (not the move variables).
+Expected<void> ParseParams(const config::Document& document, const config::Section& root,
+                           DriveProfile& profile) {
+  Expected<config::Section> params = root.Child("params");
   if (!params) return std::unexpected(params.error());
   for (const std::string& key : KeysOf(TableAt(document, "params"))) {
     if (std::find(std::begin(kMoveVariables), std::end(kMoveVariables), key) !=
@@ -374,9 +376,13 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
     if (!value) return std::unexpected(value.error());
     profile.params[key] = *value;
   }
+  return {};
+}
 
-  // [fields.*]
-  Expected<config::Section> fields = child("fields");
+// [fields.*]: the registers read back; position is required.
+Expected<void> ParseFields(const config::Document& document, const config::Section& root,
+                           DriveProfile& profile) {
+  Expected<config::Section> fields = root.Child("fields");
   if (!fields) return std::unexpected(fields.error());
   for (const std::string& key : KeysOf(TableAt(document, "fields"))) {
     if (!IsIdentifier(key)) {
@@ -392,9 +398,13 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
     return std::unexpected(fields->BadValue(
         "position", "is required: [fields.position] holds the read-back position in counts"));
   }
+  return {};
+}
 
-  // [commands]
-  Expected<config::Section> commands = child("commands");
+// [commands]: ordered register writes; move and stop are required.
+Expected<void> ParseCommands(const config::Document& document, const config::Section& root,
+                             DriveProfile& profile) {
+  Expected<config::Section> commands = root.Child("commands");
   if (!commands) return std::unexpected(commands.error());
   for (const std::string& key : KeysOf(TableAt(document, "commands"))) {
     if (std::find(std::begin(kCommandNames), std::end(kCommandNames), key) ==
@@ -438,9 +448,13 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
           commands->BadValue(required, "is required (an ordered list of register writes)"));
     }
   }
+  return {};
+}
 
-  // [status]
-  Expected<config::Section> status = child("status");
+// [status]: expressions over the fields; moving is required.
+Expected<void> ParseStatus(const config::Document& /*document*/, const config::Section& root,
+                           DriveProfile& profile) {
+  Expected<config::Section> status = root.Child("status");
   if (!status) return std::unexpected(status.error());
   auto rule = [&](std::string_view key,
                   bool required) -> Expected<std::optional<StatusExpression>> {
@@ -488,9 +502,13 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
   if (Expected<void> known = status->CheckNoUnknownKeys(); !known) {
     return std::unexpected(known.error());
   }
+  return {};
+}
 
-  // [alarms]
-  Expected<config::Section> alarms = child("alarms");
+// [alarms]: texts by alarm code.
+Expected<void> ParseAlarms(const config::Document& document, const config::Section& root,
+                           DriveProfile& profile) {
+  Expected<config::Section> alarms = root.Child("alarms");
   if (!alarms) return std::unexpected(alarms.error());
   for (const std::string& key : KeysOf(TableAt(document, "alarms"))) {
     Expected<std::int64_t> code = ParseInteger(key);
@@ -501,7 +519,22 @@ Expected<DriveProfile> ParseProfile(const config::Document& document, std::strin
     if (!text) return std::unexpected(text.error());
     profile.alarm_texts[*code] = *text;
   }
+  return {};
+}
 
+}  // namespace
+
+Expected<DriveProfile> ParseProfile(const config::Document& document, std::string name) {
+  DriveProfile profile;
+  profile.name = std::move(name);
+  profile.origin = document.origin;
+  const config::Section root = config::Section::Root(document);
+  for (auto* step :
+       {ParseHead, ParseParams, ParseFields, ParseCommands, ParseStatus, ParseAlarms}) {
+    if (Expected<void> parsed = step(document, root, profile); !parsed) {
+      return std::unexpected(parsed.error());
+    }
+  }
   if (Expected<void> known = root.CheckNoUnknownKeys(); !known) {
     return std::unexpected(known.error());
   }
