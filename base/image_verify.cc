@@ -132,13 +132,19 @@ constexpr png_byte kPngSkipped[] =
     "bKGD\0cHRM\0eXIf\0gAMA\0hIST\0iCCP\0iTXt\0oFFs\0pCAL\0pHYs\0sBIT\0sCAL\0sPLT\0sRGB\0sTER\0"
     "tEXt\0tIME\0zTXt";
 
-bool DecodePng(png_structp png, png_infop info, PngContext& context) {
-  if (setjmp(png_jmpbuf(png)) != 0) return false;
+// Reads up to the image data, every complaint fatal. Called after the caller's setjmp: libpng
+// jumps back to it.
+void ReadPngInfo(png_structp png, png_infop info, PngContext& context) {
   png_set_read_fn(png, &context, PngRead);
   png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kPngSkipped,
                               static_cast<int>(sizeof(kPngSkipped) / 5));
   png_set_benign_errors(png, 0);
   png_read_info(png, info);
+}
+
+bool DecodePng(png_structp png, png_infop info, PngContext& context) {
+  if (setjmp(png_jmpbuf(png)) != 0) return false;
+  ReadPngInfo(png, info, context);
   const int passes = png_set_interlace_handling(png);
   png_read_update_info(png, info);
   context.row.resize(png_get_rowbytes(png, info));
@@ -154,11 +160,7 @@ bool DecodePng(png_structp png, png_infop info, PngContext& context) {
 // set when the file is not one this decodes.
 bool DecodePngPixels(png_structp png, png_infop info, PngContext& context) {
   if (setjmp(png_jmpbuf(png)) != 0) return false;
-  png_set_read_fn(png, &context, PngRead);
-  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kPngSkipped,
-                              static_cast<int>(sizeof(kPngSkipped) / 5));
-  png_set_benign_errors(png, 0);
-  png_read_info(png, info);
+  ReadPngInfo(png, info, context);
   const int colour = png_get_color_type(png, info);
   const int flags = context.imread_flags;
   if (png_get_bit_depth(png, info) != 8 || png_get_valid(png, info, PNG_INFO_tRNS) != 0 ||

@@ -18,6 +18,7 @@
 
 #include "base/image_files.h"
 #include "base/image_read.h"
+#include "tests/support/encoded_images.h"
 #include "tests/support/test_files.h"
 
 namespace revolve {
@@ -25,20 +26,8 @@ namespace {
 
 using testing::HasSubstr;
 using Bytes = std::vector<std::uint8_t>;
-
-// A textured picture, so that compressed data is not trivially small.
-cv::Mat Picture(int width, int height) {
-  cv::Mat image(height, width, CV_8UC3);
-  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
-  cv::circle(image, {width / 2, height / 2}, std::min(width, height) / 3, {255, 255, 255}, -1);
-  return image;
-}
-
-Bytes Encode(const std::string& ext, const cv::Mat& image) {
-  Bytes bytes;
-  EXPECT_TRUE(cv::imencode(ext, image, bytes)) << ext;
-  return bytes;
-}
+using test_support::EncodeImage;
+using test_support::TexturedPicture;
 
 const std::vector<std::pair<std::string, ImageFormat>>& Formats() {
   static const std::vector<std::pair<std::string, ImageFormat>> formats = {
@@ -48,11 +37,11 @@ const std::vector<std::pair<std::string, ImageFormat>>& Formats() {
 }
 
 TEST(ImageHeader, ReadsTheSizeOfEveryFormat) {
-  const cv::Mat image = Picture(123, 45);
+  const cv::Mat image = TexturedPicture(123, 45);
   for (const auto& [ext, format] : Formats()) {
     cv::Mat input = image;
     if (ext == ".pgm") cv::cvtColor(image, input, cv::COLOR_BGR2GRAY);
-    const Bytes bytes = Encode(ext, input);
+    const Bytes bytes = EncodeImage(ext, input);
     const Expected<ImageHeader> header = CheckImageBytes(bytes);
     ASSERT_TRUE(header) << ext << ": " << header.error().message;
     EXPECT_EQ(header->format, format) << ext;
@@ -63,9 +52,9 @@ TEST(ImageHeader, ReadsTheSizeOfEveryFormat) {
 
 // A file cut anywhere is refused: no decoder gets to fill the rest with grey.
 TEST(ImageHeader, AFileCutShortAnywhereIsRefused) {
-  const cv::Mat image = Picture(64, 48);
+  const cv::Mat image = TexturedPicture(64, 48);
   for (const auto& [ext, format] : Formats()) {
-    const Bytes bytes = Encode(ext, ext == ".pgm" ? cv::Mat(48, 64, CV_8UC1, 7) : image);
+    const Bytes bytes = EncodeImage(ext, ext == ".pgm" ? cv::Mat(48, 64, CV_8UC1, 7) : image);
     for (std::size_t keep = 0; keep < bytes.size();
          keep += std::max<std::size_t>(1, bytes.size() / 97)) {
       const Bytes cut(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(keep));
@@ -76,7 +65,7 @@ TEST(ImageHeader, AFileCutShortAnywhereIsRefused) {
 }
 
 TEST(ImageHeader, AJpegCutToHalfNamesTheMissingEnd) {
-  const Bytes bytes = Encode(".jpg", Picture(200, 150));
+  const Bytes bytes = EncodeImage(".jpg", TexturedPicture(200, 150));
   const Bytes half(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(bytes.size() / 2));
   const Expected<ImageHeader> header = CheckImageBytes(half);
   ASSERT_FALSE(header);
@@ -84,7 +73,7 @@ TEST(ImageHeader, AJpegCutToHalfNamesTheMissingEnd) {
 }
 
 TEST(ImageHeader, APngWithADamagedChunkIsRefused) {
-  Bytes bytes = Encode(".png", Picture(64, 48));
+  Bytes bytes = EncodeImage(".png", TexturedPicture(64, 48));
   bytes[bytes.size() / 2] ^= 0x55;  // inside IDAT
   const Expected<ImageHeader> header = CheckImageBytes(bytes);
   ASSERT_FALSE(header);
@@ -93,7 +82,7 @@ TEST(ImageHeader, APngWithADamagedChunkIsRefused) {
 
 // The header bomb: a small JPEG whose frame header claims 20000 x 20000.
 Bytes JpegClaiming(int width, int height) {
-  Bytes bytes = Encode(".jpg", Picture(64, 48));
+  Bytes bytes = EncodeImage(".jpg", TexturedPicture(64, 48));
   for (std::size_t i = 2; i + 9 < bytes.size(); ++i) {
     if (bytes[i] == 0xFF && bytes[i + 1] == 0xC0) {
       bytes[i + 5] = static_cast<std::uint8_t>(height >> 8);
@@ -114,7 +103,7 @@ TEST(ImageHeader, AJpegWhoseHeaderClaimsMorePixelsThanItsDataCanHoldIsRefused) {
 }
 
 TEST(ImageHeader, APngWhoseHeaderClaimsMorePixelsThanItsDataCanHoldIsRefused) {
-  Bytes bytes = Encode(".png", cv::Mat(48, 64, CV_8UC1, cv::Scalar(0)));
+  Bytes bytes = EncodeImage(".png", cv::Mat(48, 64, CV_8UC1, cv::Scalar(0)));
   // IHDR width and height, then its CRC recomputed by re-encoding is not possible: patch and fix.
   bytes[16] = 0x00, bytes[17] = 0x00, bytes[18] = 0x4E, bytes[19] = 0x20;  // 20000
   bytes[20] = 0x00, bytes[21] = 0x00, bytes[22] = 0x4E, bytes[23] = 0x20;
@@ -142,7 +131,7 @@ class ImageReadTest : public ::testing::Test {
 };
 
 TEST_F(ImageReadTest, ATruncatedJpegIsAnErrorNamingTheFile) {
-  const Bytes bytes = Encode(".jpg", Picture(200, 150));
+  const Bytes bytes = EncodeImage(".jpg", TexturedPicture(200, 150));
   const auto path =
       Write("view_003.jpg",
             Bytes(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(bytes.size() / 2)));
@@ -153,7 +142,7 @@ TEST_F(ImageReadTest, ATruncatedJpegIsAnErrorNamingTheFile) {
 }
 
 TEST_F(ImageReadTest, AnImageOverTheLimitIsRefusedFromItsHeader) {
-  const auto path = Write("big.png", Encode(".png", Picture(400, 300)));
+  const auto path = Write("big.png", EncodeImage(".png", TexturedPicture(400, 300)));
   ImageReadOptions options;
   options.max_pixels = 100'000;
   const Expected<cv::Mat> image = ReadImageFile(path, options);
@@ -163,7 +152,7 @@ TEST_F(ImageReadTest, AnImageOverTheLimitIsRefusedFromItsHeader) {
 }
 
 TEST_F(ImageReadTest, AnImageOfAnotherSizeThanItsSetIsRefusedBeforeDecoding) {
-  const auto path = Write("other.png", Encode(".png", Picture(40, 30)));
+  const auto path = Write("other.png", EncodeImage(".png", TexturedPicture(40, 30)));
   ImageReadOptions options;
   options.expected_size = cv::Size(80, 60);
   const Expected<cv::Mat> image = ReadImageFile(path, options);
@@ -181,14 +170,14 @@ TEST_F(ImageReadTest, ADanglingSymlinkIsNamedWithItsTarget) {
   EXPECT_THAT(image.error().message, HasSubstr("view_007.png: a dangling symbolic link"));
   EXPECT_THAT(image.error().message, HasSubstr("gone.png"));
   // And listing the folder names it too, instead of dropping it.
-  Write("view_000.png", Encode(".png", Picture(8, 8)));
+  Write("view_000.png", EncodeImage(".png", TexturedPicture(8, 8)));
   const auto listed = ListImageFiles(dir_.path());
   ASSERT_FALSE(listed);
   EXPECT_THAT(listed.error().message, HasSubstr("view_007.png: a dangling symbolic link"));
 }
 
 TEST_F(ImageReadTest, AGoodImageDecodesAtItsHeadersSize) {
-  const auto path = Write("ok.jpg", Encode(".jpg", Picture(64, 48)));
+  const auto path = Write("ok.jpg", EncodeImage(".jpg", TexturedPicture(64, 48)));
   const Expected<cv::Mat> image = ReadImageFile(path);
   ASSERT_TRUE(image) << image.error().message;
   EXPECT_EQ(image->cols, 64);

@@ -18,6 +18,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_read.h"
+#include "tests/support/encoded_images.h"
 #include "tests/support/test_files.h"
 
 namespace revolve {
@@ -25,19 +26,8 @@ namespace {
 
 using testing::HasSubstr;
 using Bytes = std::vector<std::uint8_t>;
-
-cv::Mat Picture(int width, int height) {
-  cv::Mat image(height, width, CV_8UC3);
-  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
-  cv::circle(image, {width / 2, height / 2}, std::min(width, height) / 3, {255, 255, 255}, -1);
-  return image;
-}
-
-Bytes Encode(const std::string& ext, const cv::Mat& image, const std::vector<int>& params = {}) {
-  Bytes bytes;
-  EXPECT_TRUE(cv::imencode(ext, image, bytes, params)) << ext;
-  return bytes;
-}
+using test_support::EncodeImage;
+using test_support::TexturedPicture;
 
 // The offset of the JPEG end-of-image marker (the file's last two bytes).
 std::size_t JpegEnd(const Bytes& jpeg) { return jpeg.size() - 2; }
@@ -79,7 +69,7 @@ class ImageVerifyTest : public testing::Test {
 
 TEST_F(ImageVerifyTest, ExtraneousBytesBeforeAJpegMarkerAreRefused) {
   // After the last block's bits (the decoder reads a few bytes ahead, so more than a few).
-  Bytes jpeg = Encode(".jpg", Picture(96, 64));
+  Bytes jpeg = EncodeImage(".jpg", TexturedPicture(96, 64));
   const Bytes junk(64, 0x5A);
   jpeg.insert(jpeg.begin() + static_cast<std::ptrdiff_t>(JpegEnd(jpeg)), junk.begin(), junk.end());
   EXPECT_THAT(RefusedMessage("extraneous.jpg", jpeg),
@@ -90,7 +80,7 @@ TEST_F(ImageVerifyTest, ExtraneousBytesBeforeAJpegMarkerAreRefused) {
 TEST_F(ImageVerifyTest, DamagedJpegEntropyDataIsRefused) {
   // Overwrites a stretch of the scan data with bytes that are no marker: libjpeg warns (bad
   // Huffman code, or a marker where it expected data) and decodes rubbish.
-  const Bytes good = Encode(".jpg", Picture(160, 120));
+  const Bytes good = EncodeImage(".jpg", TexturedPicture(160, 120));
   const std::size_t start = JpegScanStart(good);
   ASSERT_GT(start, 0u);
   int refused = 0;
@@ -107,7 +97,7 @@ TEST_F(ImageVerifyTest, DamagedJpegEntropyDataIsRefused) {
 }
 
 TEST_F(ImageVerifyTest, AJpegWithAStrayMarkerInItsScanIsRefused) {
-  Bytes jpeg = Encode(".jpg", Picture(160, 120));
+  Bytes jpeg = EncodeImage(".jpg", TexturedPicture(160, 120));
   const std::size_t at = JpegScanStart(jpeg) + 100;
   const Bytes marker = {0xFF, 0xD3};  // RST3 where no restart interval was declared
   jpeg.insert(jpeg.begin() + static_cast<std::ptrdiff_t>(at), marker.begin(), marker.end());
@@ -118,7 +108,7 @@ TEST_F(ImageVerifyTest, AJpegWithAStrayMarkerInItsScanIsRefused) {
 // decoder can tell.
 TEST_F(ImageVerifyTest, DamagedPngImageDataWithAValidCrcIsRefused) {
   const cv::Mat image(60, 80, CV_8UC1, cv::Scalar(9));
-  Bytes png = Encode(".png", image);
+  Bytes png = EncodeImage(".png", image);
   // The first IDAT chunk: 8 signature bytes, then chunks of length, type, data, CRC.
   std::size_t at = 8;
   while (std::string(png.begin() + static_cast<std::ptrdiff_t>(at + 4),
@@ -142,7 +132,7 @@ TEST_F(ImageVerifyTest, DamagedPngImageDataWithAValidCrcIsRefused) {
 }
 
 TEST_F(ImageVerifyTest, DamagedLzwTiffStripsAreRefused) {
-  const Bytes good = Encode(".tif", Picture(64, 48));  // OpenCV writes LZW
+  const Bytes good = EncodeImage(".tif", TexturedPicture(64, 48));  // OpenCV writes LZW
   ASSERT_TRUE(VerifyImageData(ImageFormat::kTiff, good));
   int refused = 0;
   // The strips follow the 8-byte header; the directory is at the end.
@@ -158,7 +148,8 @@ TEST_F(ImageVerifyTest, DamagedLzwTiffStripsAreRefused) {
 // An uncompressed TIFF whose strip byte count is less than its rows need: libtiff would read
 // what is there; the header check refuses it.
 TEST_F(ImageVerifyTest, AnUncompressedTiffWithShortStripsIsRefused) {
-  const Bytes good = Encode(".tif", Picture(40, 30), {cv::IMWRITE_TIFF_COMPRESSION, 1});
+  const Bytes good =
+      EncodeImage(".tif", TexturedPicture(40, 30), {cv::IMWRITE_TIFF_COMPRESSION, 1});
   ASSERT_TRUE(CheckImageBytes(good));
   // StripByteCounts (tag 279) entries: halve each.
   Bytes tiff = good;
@@ -188,9 +179,9 @@ TEST_F(ImageVerifyTest, AnUncompressedTiffWithShortStripsIsRefused) {
 }
 
 TEST_F(ImageVerifyTest, GoodImagesOfEveryFormatPass) {
-  const cv::Mat image = Picture(77, 51);
+  const cv::Mat image = TexturedPicture(77, 51);
   for (const std::string ext : {".png", ".jpg", ".tif", ".bmp", ".ppm"}) {
-    const Bytes bytes = Encode(ext, image);
+    const Bytes bytes = EncodeImage(ext, image);
     const Expected<ImageHeader> header = CheckImageBytes(bytes);
     ASSERT_TRUE(header) << ext << ": " << header.error().message;
     const Expected<void> verified = VerifyImageData(header->format, bytes);
@@ -202,7 +193,7 @@ TEST_F(ImageVerifyTest, GoodImagesOfEveryFormatPass) {
       {".png", {cv::IMWRITE_PNG_COMPRESSION, 9}},
   };
   for (const auto& [ext, params] : variants) {
-    const Bytes bytes = Encode(ext, image, params);
+    const Bytes bytes = EncodeImage(ext, image, params);
     const Expected<ImageHeader> header = CheckImageBytes(bytes);
     ASSERT_TRUE(header) << ext;
     EXPECT_TRUE(VerifyImageData(header->format, bytes)) << ext;
@@ -210,18 +201,18 @@ TEST_F(ImageVerifyTest, GoodImagesOfEveryFormatPass) {
   cv::Mat deep;
   image.convertTo(deep, CV_16UC3, 257.0);
   for (const std::string ext : {".png", ".tif"}) {
-    const Bytes bytes = Encode(ext, deep);
+    const Bytes bytes = EncodeImage(ext, deep);
     EXPECT_TRUE(VerifyImageData(CheckImageBytes(bytes)->format, bytes)) << ext << " 16-bit";
   }
   cv::Mat grey;
   cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  const Bytes bytes = Encode(".jpg", grey);
+  const Bytes bytes = EncodeImage(".jpg", grey);
   EXPECT_TRUE(VerifyImageData(ImageFormat::kJpeg, bytes));
 }
 
 // The one-pass PNG decoder gives what OpenCV gives, pixel for pixel, for every kind it takes.
 TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
-  const cv::Mat bgr = Picture(61, 47);
+  const cv::Mat bgr = TexturedPicture(61, 47);
   cv::Mat grey, bgra;
   cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
   cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
@@ -229,7 +220,7 @@ TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
       [](cv::Vec4b& p, const int* at) { p[3] = static_cast<uchar>(at[1] * 4); });
   int decoded = 0;
   for (const cv::Mat& image : {grey, bgr, bgra}) {
-    const Bytes bytes = Encode(".png", image);
+    const Bytes bytes = EncodeImage(".png", image);
     for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
       const cv::Mat expected = cv::imdecode(bytes, flags);
       const std::optional<Expected<cv::Mat>> mine = DecodeVerifiedPng(bytes, flags);
@@ -244,7 +235,7 @@ TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
   }
   EXPECT_GE(decoded, 7);  // all but RGB(A) read as grey
   // Damage is refused as by VerifyImageData.
-  Bytes cut = Encode(".png", grey);
+  Bytes cut = EncodeImage(".png", grey);
   cut.resize(cut.size() - 30);
   cut.insert(cut.end(), 30, 0);
   const std::optional<Expected<cv::Mat>> refused = DecodeVerifiedPng(cut, cv::IMREAD_GRAYSCALE);

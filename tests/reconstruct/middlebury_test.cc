@@ -31,11 +31,13 @@
 #include "reconstruct/metrics/reprojection.h"
 #include "station/commands/reconstruct_images_command.h"
 #include "station/commands/scan_command.h"
+#include "tests/support/test_files.h"
 
 namespace revolve::reconstruct {
 namespace {
 
 namespace fs = std::filesystem;
+using test_support::ReadLines;
 
 const fs::path kData = fs::path(REVOLVE_SHARED_DIR) / "data";
 const fs::path kReference = fs::path(REVOLVE_SOURCE_DIR) / "tests/data/reference_silhouettes";
@@ -48,16 +50,6 @@ struct SetResult {
   double mean_reference_iou = 0.0;
   double min_reference_iou = 1.0;
 };
-
-std::vector<std::string> ReadLines(const fs::path& path) {
-  std::vector<std::string> lines;
-  std::ifstream in(path);
-  for (std::string line; std::getline(in, line);) {
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    if (!line.empty()) lines.push_back(line);
-  }
-  return lines;
-}
 
 Eigen::Vector3d Vec3(const nlohmann::json& j) {
   return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
@@ -81,6 +73,16 @@ SetResult Reconstruct(const std::string& set, const std::string& reference, cons
   std::ifstream report_in(out / "report.json");
   result.report = nlohmann::json::parse(report_in, nullptr, false);
   Expected<Mesh> mesh = ReadPly(out / "model" / "model.ply");
+  if (!result.report.is_discarded()) {
+    // auto says what it picked and why; the masks a person checks are written, one per image.
+    EXPECT_NE(result.report["segmentation"]["method"], "auto");
+    EXPECT_FALSE(result.report["segmentation"]["reason"].get<std::string>().empty());
+    for (const nlohmann::json& view : result.report["reprojection"]["per_view"]) {
+      const fs::path image = view["image"].get<std::string>();
+      EXPECT_TRUE(fs::exists(out / "masks" / (image.stem().string() + ".png"))) << image;
+    }
+    EXPECT_TRUE(fs::exists(out / "contact_sheet.png"));
+  }
   fs::remove_all(out);
   EXPECT_TRUE(mesh.has_value()) << (mesh ? "" : mesh.error().ToString()) << err.str();
   if (!mesh || result.report.is_discarded()) return result;
