@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -52,18 +53,71 @@ cv::Mat ReduceTrimap(const cv::Mat& trimap, cv::Size size, int radius_px) {
   return small;
 }
 
-// Undecided pixels farther than `reach_px` from every sure object pixel become sure backdrop: the
-// object is what the sure core reaches. A cloth's fold or a stand far from the object is not cut
-// (the max-flow's slow case: a wide region both colour models explain alike).
-void LimitReach(cv::Mat& labels, double reach_px) {
-  const cv::Mat sure_object = labels == cv::GC_FGD;
-  if (reach_px <= 0.0 || cv::countNonZero(sure_object) == 0) return;
+// Undecided pixels farther than `reach_px` from every pixel of `seeds` (the sure object, and what
+// the noise hysteresis brought in) become sure backdrop: the object is what its core reaches. A
+// cloth's fold or a stand far from the object is not cut (the max-flow's slow case: a wide region
+// both colour models explain alike).
+void LimitReach(cv::Mat& labels, const cv::Mat& seeds, double reach_px) {
+  if (reach_px <= 0.0 || cv::countNonZero(seeds) == 0) return;
   cv::Mat distance;
-  cv::distanceTransform(~sure_object, distance, cv::DIST_L2, 3);
+  cv::distanceTransform(~seeds, distance, cv::DIST_L2, 3);
   labels.setTo(cv::GC_BGD, distance > reach_px);
 }
 
+// The pixels of `above` (CV_8UC1) 8-connected through `above` to a pixel of `seeds`.
+cv::Mat ConnectedTo(const cv::Mat& above, const cv::Mat& seeds) {
+  cv::Mat components;
+  const int count = cv::connectedComponents(above, components, 8, CV_32S);
+  std::vector<std::uint8_t> reached(static_cast<std::size_t>(count), 0);
+  for (int y = 0; y < above.rows; ++y) {
+    const int* c = components.ptr<int>(y);
+    const auto* s = seeds.ptr<std::uint8_t>(y);
+    for (int x = 0; x < above.cols; ++x) {
+      if (s[x] && c[x] > 0) reached[static_cast<std::size_t>(c[x])] = 1;
+    }
+  }
+  cv::Mat out(above.size(), CV_8UC1);
+  for (int y = 0; y < above.rows; ++y) {
+    const int* c = components.ptr<int>(y);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < above.cols; ++x) o[x] = reached[static_cast<std::size_t>(c[x])] ? 255 : 0;
+  }
+  return out;
+}
+
+double ProbableLevel(const ScoreLevels& levels) {
+  return levels.backdrop + kProbableFraction * (levels.object - levels.backdrop);
+}
+
 }  // namespace
+
+double BackdropNoiseCeiling(const cv::Mat& score, const cv::Mat& roi) {
+  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
+  if (box.area() == 0) box = cv::Rect(0, 0, score.cols, score.rows);
+  std::vector<int> values;
+  values.reserve(static_cast<std::size_t>(2 * (box.width + box.height)));
+  for (int x = box.x; x < box.x + box.width; ++x) {
+    values.push_back(score.at<std::uint8_t>(box.y, x));
+    values.push_back(score.at<std::uint8_t>(box.y + box.height - 1, x));
+  }
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    values.push_back(score.at<std::uint8_t>(y, box.x));
+    values.push_back(score.at<std::uint8_t>(y, box.x + box.width - 1));
+  }
+  const auto median_of = [](std::vector<int> v) {
+    const auto middle = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), middle, v.end());
+    return static_cast<double>(*middle);
+  };
+  const double median = median_of(values);
+  for (int& v : values) v = static_cast<int>(std::lround(std::abs(v - median)));
+  const double mad = median_of(values);
+  return median + std::max(3.0, 5.0 * 1.4826 * mad);
+}
+
+bool UsesNoiseHysteresis(const ScoreLevels& levels) {
+  return levels.noise >= 0.0 && levels.noise < ProbableLevel(levels);
+}
 
 cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   const cv::Mat inside = Eroded(mask, radius_px + 1);
@@ -111,27 +165,42 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   return out;
 }
 
-cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
-                        const GraphCutOptions& options) {
-  const double middle = levels.backdrop + kProbableFraction * (levels.object - levels.backdrop);
-  cv::Mat trimap(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
-  trimap.setTo(cv::GC_PR_FGD, score > middle);
+Trimap TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
+                       const GraphCutOptions& options) {
+  Trimap trimap;
+  cv::Mat& labels = trimap.labels;
+  labels = cv::Mat(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
+  labels.setTo(cv::GC_PR_FGD, score > ProbableLevel(levels));
   const cv::Mat above = score > levels.object;
-  trimap.setTo(cv::GC_FGD, Eroded(above, 2));
-  trimap.setTo(cv::GC_BGD, Eroded(score <= levels.backdrop, 2));
+  const cv::Mat sure_object = Eroded(above, 2);
   const int ring = std::max(
       1, static_cast<int>(std::lround(options.border_fraction * std::min(score.cols, score.rows))));
   cv::Mat border(score.size(), CV_8UC1, cv::Scalar(255));
   if (score.cols > 2 * ring && score.rows > 2 * ring) {
     border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
   }
-  trimap.setTo(cv::GC_BGD, border & ~above);
-  if (!roi.empty()) trimap.setTo(cv::GC_BGD, roi == 0);
+  if (UsesNoiseHysteresis(levels)) {
+    const cv::Mat above_noise = score > levels.noise;
+    // What rises above the noise apart from the object's core and reaches the frame's edge (a
+    // stand, a cloth) is left to the reach and the cut as before.
+    const cv::Mat detached = above_noise & ~Dilated(sure_object, 2);
+    const cv::Mat brought =
+        ConnectedTo(above_noise, sure_object) & ~ConnectedTo(detached, border & detached);
+    labels.setTo(cv::GC_PR_FGD, brought);
+    labels.setTo(cv::GC_BGD, Eroded(~above_noise, 2));
+    trimap.reach_from = sure_object | brought;
+  } else {
+    labels.setTo(cv::GC_BGD, Eroded(score <= levels.backdrop, 2));
+  }
+  labels.setTo(cv::GC_FGD, sure_object);
+  labels.setTo(cv::GC_BGD, border & ~above);
+  if (!roi.empty()) labels.setTo(cv::GC_BGD, roi == 0);
   return trimap;
 }
 
-cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::Mat& trimap,
+cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trimap& full,
                            const GraphCutOptions& options) {
+  const cv::Mat& trimap = full.labels;
   cv::Mat fallback = (trimap == cv::GC_FGD) | (trimap == cv::GC_PR_FGD);
   const int side = std::max(bgr.cols, bgr.rows);
   const double scale = options.max_side_px > 0 && side > options.max_side_px
@@ -140,13 +209,18 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::M
   const int radius = scale < 1.0 ? static_cast<int>(std::ceil(1.0 / scale)) : 0;
   cv::Mat small_bgr = bgr;
   cv::Mat labels = trimap.clone();
+  cv::Mat reach_from = full.reach_from;
   if (scale < 1.0) {
     const cv::Size size(std::max(1, static_cast<int>(std::lround(bgr.cols * scale))),
                         std::max(1, static_cast<int>(std::lround(bgr.rows * scale))));
     cv::resize(bgr, small_bgr, size, 0.0, 0.0, cv::INTER_AREA);
     labels = ReduceTrimap(trimap, size, radius);
+    if (!reach_from.empty()) {
+      cv::resize(full.reach_from, reach_from, size, 0.0, 0.0, cv::INTER_NEAREST);
+    }
   }
-  LimitReach(labels, options.reach_fraction * std::max(labels.cols, labels.rows));
+  if (reach_from.empty()) reach_from = labels == cv::GC_FGD;
+  LimitReach(labels, reach_from, options.reach_fraction * std::max(labels.cols, labels.rows));
   const bool has_fg = cv::countNonZero((labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD)) > 0;
   const bool has_bg = cv::countNonZero((labels == cv::GC_BGD) | (labels == cv::GC_PR_BGD)) > 0;
   if (!has_fg || !has_bg) return fallback;

@@ -15,7 +15,24 @@ namespace revolve::capture {
 struct ScoreLevels {
   double object = 0.0;    // above: object for sure (the score's Otsu threshold)
   double backdrop = 0.0;  // at or below: backdrop for sure (the backdrop class's mean)
+  // The backdrop's noise ceiling (BackdropNoiseCeiling), or negative when unknown. When it lies
+  // below the probable-object level (an even backdrop: black, grey, white), the trimap is a
+  // hysteresis instead: backdrop for sure is only what lies within the noise, and everything
+  // above it that is connected to the sure object is probably object (the deep shadows on an
+  // object over black, far from its lit part).
+  double noise = -1.0;
 };
+
+// The highest score the backdrop's own pixels reach: over the outline of the region of
+// interest's bounding rectangle (`roi` CV_8UC1, may be empty = the whole frame), the median
+// score plus 5 scaled median absolute deviations (1.4826 MAD, a robust sigma), at least 3 levels
+// above the median. The object may cover part of the outline (a stand, a large object): the
+// median and the MAD ignore it up to half of the outline.
+double BackdropNoiseCeiling(const cv::Mat& score, const cv::Mat& roi);
+
+// Whether the trimap uses the hysteresis (ScoreLevels::noise): a known noise ceiling below the
+// probable-object level.
+bool UsesNoiseHysteresis(const ScoreLevels& levels);
 
 struct GraphCutOptions {
   // The graph cut runs on a copy whose longer side is at most this (speed: the cut's cost grows
@@ -31,20 +48,32 @@ struct GraphCutOptions {
   double reach_fraction = 0.075;
 };
 
-// The trimap as GrabCut's labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the
-// score's size: score > object eroded by 2 px: GC_FGD; <= backdrop eroded by 2 px, or on the
-// border ring and not above object: GC_BGD; above 30 % of the way from backdrop to object:
-// GC_PR_FGD; else GC_PR_BGD.
+struct Trimap {
+  // GrabCut's labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the score's size.
+  cv::Mat labels;
+  // CV_8UC1 of the same size: where the reach (GraphCutOptions::reach_fraction) is measured
+  // from, the sure object and what the noise hysteresis brought in; empty: the GC_FGD labels.
+  cv::Mat reach_from;
+};
+
+// The trimap from a score: score > object eroded by 2 px: GC_FGD;
+// <= backdrop eroded by 2 px, or on the border ring and not above object: GC_BGD; above 30 % of
+// the way from backdrop to object: GC_PR_FGD; else GC_PR_BGD.
+// With the noise hysteresis (UsesNoiseHysteresis): GC_BGD is <= noise eroded by 2 px (and the
+// border ring); every pixel above noise 8-connected to a GC_FGD pixel through pixels above noise
+// is at least GC_PR_FGD and a reach seed, unless it belongs to a region above noise that reaches
+// the border ring without passing through the sure object (dilated by 2 px): a stand or a cloth
+// that touches the frame's edge is not brought in, the object's own shadows are.
 // `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
-cv::Mat TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
-                        const GraphCutOptions& options);
+Trimap TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
+                       const GraphCutOptions& options);
 
 // The refined mask (CV_8UC1, 0/255) of `bgr` (CV_8UC3) from `trimap` (TrimapFromScore): the colour
 // cut (CutByColour) on the reduced copy, the result scaled up, and in a band of the scale's width
 // around its edge each pixel decided by `score` against the mean of the local object and backdrop
 // scores (the edge at half contrast). When the graph cut cannot run (no object or no backdrop
 // seed), the trimap's object labels (GC_FGD, GC_PR_FGD) are returned.
-cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const cv::Mat& trimap,
+cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trimap& trimap,
                            const GraphCutOptions& options);
 
 // Where the edge of `mask` (CV_8UC1, 0/255) lies in `score` (CV_8UC1): for each pixel within

@@ -161,7 +161,8 @@ class PipelineSegmenter final : public Segmenter {
     if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
       return cv::Mat::zeros(bgr.size(), CV_8UC1);
     }
-    scored.levels = {static_cast<double>(split.threshold), split.low_mean};
+    scored.levels = {static_cast<double>(split.threshold), split.low_mean,
+                     BackdropNoiseCeiling(scored.score, roi_w)};
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(

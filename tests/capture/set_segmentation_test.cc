@@ -13,6 +13,7 @@
 #include "capture/segment/set_segmentation.h"
 #include "capture/segmenter.h"
 #include "capture/synthetic/synthetic_camera.h"
+#include "tests/support/synthetic_backdrops.h"
 
 namespace revolve::capture {
 namespace {
@@ -23,25 +24,7 @@ double IoU(const cv::Mat& a, const cv::Mat& b) {
   return uni == 0.0 ? 1.0 : inter / uni;
 }
 
-// kBlackShadowedObject (deep shadows on the object over black) is not instantiated below: every
-// method still cuts the shadowed third away (IoU 0.45-0.67), the open part of issue 17.
 enum class Scene { kUnevenCloth, kLightShadow, kBlackShadowedObject };
-
-// A smooth random field in [low, high] (folds of a cloth), grey with a slight tint.
-cv::Mat Cloth(cv::Size size, double low, double high, std::uint64_t seed) {
-  cv::RNG rng(seed);
-  cv::Mat coarse(size.height / 24 + 2, size.width / 24 + 2, CV_32F);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::Mat field;
-  cv::resize(coarse, field, size, 0.0, 0.0, cv::INTER_CUBIC);
-  cv::GaussianBlur(field, field, {0, 0}, 6.0);
-  cv::normalize(field, field, low, high, cv::NORM_MINMAX);
-  cv::Mat grey;
-  field.convertTo(grey, CV_8U);
-  cv::Mat bgr;
-  cv::merge(std::vector<cv::Mat>{grey + 6, grey, grey + 3}, bgr);
-  return bgr;
-}
 
 struct Frame {
   cv::Mat image;
@@ -65,12 +48,7 @@ Frame Composite(const RenderOutput& render, const cv::Mat& backdrop, std::uint64
   frame.truth = render.true_mask;
   frame.image = backdrop.clone();
   render.image.copyTo(frame.image, render.true_mask);
-  cv::Mat noise(frame.image.size(), CV_16SC3);
-  cv::RNG(seed).fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
-  cv::Mat noisy;
-  frame.image.convertTo(noisy, CV_16SC3);
-  noisy += noise;
-  noisy.convertTo(frame.image, CV_8UC3);
+  frame.image = test_support::WithNoise(frame.image, 3.0, seed);
   return frame;
 }
 
@@ -83,7 +61,7 @@ Frame MakeScene(Scene scene, const std::string& object, double angle_deg) {
   cv::Mat backdrop;
   switch (scene) {
     case Scene::kUnevenCloth: {
-      backdrop = Cloth(size, 6.0, 70.0, 11);
+      backdrop = test_support::Cloth(size, 6.0, 70.0, 11);
       // A dark stand under the object, touching it and the frame's bottom edge.
       const cv::Rect box = cv::boundingRect(render.true_mask);
       const cv::Rect stand(box.x + box.width / 3, box.y + box.height - 4, box.width / 3,
@@ -113,14 +91,9 @@ Frame MakeScene(Scene scene, const std::string& object, double angle_deg) {
       break;
   }
   Frame frame = Composite(render, backdrop, 5);
+  // The lower third of the object in deep shadow: 15 % of its brightness.
   if (scene == Scene::kBlackShadowedObject) {
-    // The lower third of the object in deep shadow: 15 % of its brightness.
-    const cv::Rect box = cv::boundingRect(render.true_mask);
-    const cv::Rect lower(box.x, box.y + 2 * box.height / 3, box.width, box.height / 3 + 1);
-    cv::Mat region = frame.image(lower);
-    cv::Mat dark;
-    region.convertTo(dark, -1, 0.15, 0.0);
-    dark.copyTo(region, render.true_mask(lower));
+    test_support::ShadeLowerThird(frame.image, render.true_mask, 0.15);
   }
   return frame;
 }
@@ -158,14 +131,16 @@ TEST_P(RealisticBackdrops, GraphCutAndAutoHoldWhereAThresholdFails) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RealisticBackdrops,
                          ::testing::Values(SceneCase{Scene::kUnevenCloth, "uneven_cloth_and_stand"},
-                                           SceneCase{Scene::kLightShadow, "light_with_shadow"}),
+                                           SceneCase{Scene::kLightShadow, "light_with_shadow"},
+                                           SceneCase{Scene::kBlackShadowedObject,
+                                                     "black_with_shadowed_object"}),
                          [](const auto& p) { return p.param.name; });
 
 TEST(SetSegmentation, ATurntableSequenceTeachesTheBackdrop) {
   auto camera = Camera("vase", 1.0);
   ASSERT_NE(camera, nullptr);
   const RenderOutput first = camera->RenderWithTruth(0.0, 1);
-  const cv::Mat cloth = Cloth(first.image.size(), 6.0, 90.0, 23);
+  const cv::Mat cloth = test_support::Cloth(first.image.size(), 6.0, 90.0, 23);
   std::vector<cv::Mat> frames;
   std::vector<cv::Mat> truths;
   for (int k = 0; k < 12; ++k) {

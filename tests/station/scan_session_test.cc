@@ -19,6 +19,7 @@
 
 #include "capture/synthetic/synthetic_camera.h"
 #include "station/scan_session.h"
+#include "tests/support/synthetic_backdrops.h"
 
 namespace revolve::station {
 namespace {
@@ -310,22 +311,6 @@ TEST_F(ScanSessionTest, TheBackgroundMethodTakesTheEmptySceneFromAFile) {
   EXPECT_EQ(ReadJson(dir_ / "manifest.json")["state"], "failed");
 }
 
-// A smooth random field in [low, high] (the folds of a dark cloth), grey with a slight tint.
-cv::Mat Cloth(cv::Size size, double low, double high, std::uint64_t seed) {
-  cv::RNG rng(seed);
-  cv::Mat coarse(size.height / 24 + 2, size.width / 24 + 2, CV_32F);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0.0, 1.0);
-  cv::Mat field;
-  cv::resize(coarse, field, size, 0.0, 0.0, cv::INTER_CUBIC);
-  cv::GaussianBlur(field, field, {0, 0}, 6.0);
-  cv::normalize(field, field, low, high, cv::NORM_MINMAX);
-  cv::Mat grey;
-  field.convertTo(grey, CV_8U);
-  cv::Mat bgr;
-  cv::merge(std::vector<cv::Mat>{grey + 6, grey, grey + 3}, bgr);
-  return bgr;
-}
-
 double IoU(const cv::Mat& a, const cv::Mat& b) {
   const double inter = cv::countNonZero(a & b);
   const double uni = cv::countNonZero(a | b);
@@ -347,7 +332,7 @@ TEST_F(ScanSessionTest, WithoutAnEmptySceneTheBackdropIsLearnedFromTheFirstStops
   o.backdrop_bgr = {0, 0, 0};
   auto camera = capture::SyntheticCamera::Create(o, std::make_shared<SimulatedPlate>());
   ASSERT_TRUE(camera.has_value()) << camera.error().message;
-  const cv::Mat cloth = Cloth(cv::Size(320, 240), 6.0, 90.0, 23);
+  const cv::Mat cloth = test_support::Cloth(cv::Size(320, 240), 6.0, 90.0, 23);
   std::vector<cv::Mat> truths;
   for (int k = 0; k < kStops; ++k) {
     const capture::RenderOutput render = (*camera)->RenderWithTruth(k * 360.0 / kStops, k);
