@@ -1,6 +1,7 @@
 #include "capture/segment/graph_cut.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -53,15 +54,81 @@ cv::Mat ReduceTrimap(const cv::Mat& trimap, cv::Size size, int radius_px) {
   return small;
 }
 
-// Undecided pixels farther than `reach_px` from every pixel of `seeds` (the sure object, and what
-// the noise hysteresis brought in) become sure backdrop: the object is what its core reaches. A
-// cloth's fold or a stand far from the object is not cut (the max-flow's slow case: a wide region
-// both colour models explain alike).
-void LimitReach(cv::Mat& labels, const cv::Mat& seeds, double reach_px) {
-  if (reach_px <= 0.0 || cv::countNonZero(seeds) == 0) return;
+// Undecided pixels farther than `reach_px` from every sure object pixel become sure backdrop,
+// except those of `kept` (CV_8UC1, may be empty: what the noise hysteresis brought in): the
+// object is what its sure core reaches. A cloth's fold or a stand far from the object is not cut
+// (the max-flow's slow case: a wide region both colour models explain alike).
+void LimitReach(cv::Mat& labels, const cv::Mat& kept, double reach_px) {
+  const cv::Mat sure_object = labels == cv::GC_FGD;
+  if (reach_px <= 0.0 || cv::countNonZero(sure_object) == 0) return;
   cv::Mat distance;
-  cv::distanceTransform(~seeds, distance, cv::DIST_L2, 3);
-  labels.setTo(cv::GC_BGD, distance > reach_px);
+  cv::distanceTransform(~sure_object, distance, cv::DIST_L2, 3);
+  cv::Mat beyond = distance > reach_px;
+  if (!kept.empty()) beyond &= ~kept;
+  labels.setTo(cv::GC_BGD, beyond);
+}
+
+constexpr int kColourLevels = 16;
+
+// Colour level (0..15) of an 8-bit value on a square-root scale (finer in the dark).
+int ColourLevel(std::uint8_t v) {
+  static const std::array<std::uint8_t, 256> table = [] {
+    std::array<std::uint8_t, 256> t{};
+    for (int i = 0; i < 256; ++i) {
+      t[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(
+          std::min(kColourLevels - 1, static_cast<int>(std::sqrt(i / 255.0) * kColourLevels)));
+    }
+    return t;
+  }();
+  return table[v];
+}
+
+int ColourBin(const cv::Vec3b& c) {
+  return (ColourLevel(c[0]) * kColourLevels + ColourLevel(c[1])) * kColourLevels +
+         ColourLevel(c[2]);
+}
+
+// `candidates` (CV_8UC1) without the pixels whose colour is common among the pixels of `edge`:
+// a colour bin holding at least 8 of them and 0.5 % of `ring_px`, widened by one level each way.
+// What touches the frame's edge above the backdrop's noise (a stand's foot, a cloth) has these
+// colours.
+cv::Mat WithoutEdgeColours(const cv::Mat& candidates, const cv::Mat& bgr, const cv::Mat& edge,
+                           int ring_px) {
+  constexpr int kBins = kColourLevels * kColourLevels * kColourLevels;
+  std::vector<int> counts(kBins, 0);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    const auto* e = edge.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      if (e[x]) ++counts[static_cast<std::size_t>(ColourBin(p[x]))];
+    }
+  }
+  const int least = std::max(8, ring_px / 200);
+  std::vector<std::uint8_t> common(kBins, 0);
+  bool any = false;
+  for (int b = 0; b < kBins; ++b) {
+    if (counts[static_cast<std::size_t>(b)] < least) continue;
+    any = true;
+    const int l0 = b / (kColourLevels * kColourLevels), l1 = (b / kColourLevels) % kColourLevels,
+              l2 = b % kColourLevels;
+    for (int a0 = std::max(0, l0 - 1); a0 <= std::min(kColourLevels - 1, l0 + 1); ++a0) {
+      for (int a1 = std::max(0, l1 - 1); a1 <= std::min(kColourLevels - 1, l1 + 1); ++a1) {
+        for (int a2 = std::max(0, l2 - 1); a2 <= std::min(kColourLevels - 1, l2 + 1); ++a2) {
+          common[static_cast<std::size_t>((a0 * kColourLevels + a1) * kColourLevels + a2)] = 1;
+        }
+      }
+    }
+  }
+  if (!any) return candidates;
+  cv::Mat out = candidates.clone();
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* p = bgr.ptr<cv::Vec3b>(y);
+    auto* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      if (o[x] && common[static_cast<std::size_t>(ColourBin(p[x]))]) o[x] = 0;
+    }
+  }
+  return out;
 }
 
 // The pixels of `above` (CV_8UC1) 8-connected through `above` to a pixel of `seeds`.
@@ -165,8 +232,8 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   return out;
 }
 
-Trimap TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
-                       const GraphCutOptions& options) {
+Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
+                       const cv::Mat& roi, const GraphCutOptions& options) {
   Trimap trimap;
   cv::Mat& labels = trimap.labels;
   labels = cv::Mat(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
@@ -184,17 +251,23 @@ Trimap TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv
     // What rises above the noise apart from the object's core and reaches the frame's edge (a
     // stand, a cloth) is left to the reach and the cut as before.
     const cv::Mat detached = above_noise & ~Dilated(sure_object, 2);
-    const cv::Mat brought =
-        ConnectedTo(above_noise, sure_object) & ~ConnectedTo(detached, border & detached);
+    const cv::Mat edge = border & detached;
+    cv::Mat brought = ConnectedTo(above_noise, sure_object);
+    if (cv::countNonZero(edge) > 0) {
+      // Nor are the colours seen there (a fold of the cloth seen between a temple's columns).
+      brought = WithoutEdgeColours(brought & ~ConnectedTo(detached, edge), bgr, edge,
+                                   cv::countNonZero(border));
+    }
     labels.setTo(cv::GC_PR_FGD, brought);
     labels.setTo(cv::GC_BGD, Eroded(~above_noise, 2));
-    trimap.reach_from = sure_object | brought;
+    trimap.kept = brought & ~sure_object;
   } else {
     labels.setTo(cv::GC_BGD, Eroded(score <= levels.backdrop, 2));
   }
   labels.setTo(cv::GC_FGD, sure_object);
   labels.setTo(cv::GC_BGD, border & ~above);
   if (!roi.empty()) labels.setTo(cv::GC_BGD, roi == 0);
+  if (!trimap.kept.empty()) trimap.kept &= labels == cv::GC_PR_FGD;
   return trimap;
 }
 
@@ -209,18 +282,16 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trima
   const int radius = scale < 1.0 ? static_cast<int>(std::ceil(1.0 / scale)) : 0;
   cv::Mat small_bgr = bgr;
   cv::Mat labels = trimap.clone();
-  cv::Mat reach_from = full.reach_from;
+  cv::Mat kept = full.kept;
   if (scale < 1.0) {
     const cv::Size size(std::max(1, static_cast<int>(std::lround(bgr.cols * scale))),
                         std::max(1, static_cast<int>(std::lround(bgr.rows * scale))));
     cv::resize(bgr, small_bgr, size, 0.0, 0.0, cv::INTER_AREA);
     labels = ReduceTrimap(trimap, size, radius);
-    if (!reach_from.empty()) {
-      cv::resize(full.reach_from, reach_from, size, 0.0, 0.0, cv::INTER_NEAREST);
-    }
+    if (!kept.empty()) cv::resize(full.kept, kept, size, 0.0, 0.0, cv::INTER_NEAREST);
   }
-  if (reach_from.empty()) reach_from = labels == cv::GC_FGD;
-  LimitReach(labels, reach_from, options.reach_fraction * std::max(labels.cols, labels.rows));
+  if (!kept.empty()) kept &= labels == cv::GC_PR_FGD;
+  LimitReach(labels, kept, options.reach_fraction * std::max(labels.cols, labels.rows));
   const bool has_fg = cv::countNonZero((labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD)) > 0;
   const bool has_bg = cv::countNonZero((labels == cv::GC_BGD) | (labels == cv::GC_PR_BGD)) > 0;
   if (!has_fg || !has_bg) return fallback;

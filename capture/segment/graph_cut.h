@@ -51,22 +51,24 @@ struct GraphCutOptions {
 struct Trimap {
   // GrabCut's labels (cv::GC_BGD, GC_FGD, GC_PR_BGD, GC_PR_FGD), CV_8UC1 of the score's size.
   cv::Mat labels;
-  // CV_8UC1 of the same size: where the reach (GraphCutOptions::reach_fraction) is measured
-  // from, the sure object and what the noise hysteresis brought in; empty: the GC_FGD labels.
-  cv::Mat reach_from;
+  // CV_8UC1 of the same size (may be empty): the GC_PR_FGD pixels the noise hysteresis brought
+  // in, which the reach (GraphCutOptions::reach_fraction) never turns into backdrop.
+  cv::Mat kept;
 };
 
-// The trimap from a score: score > object eroded by 2 px: GC_FGD;
+// The trimap of `bgr` (CV_8UC3) from its score: score > object eroded by 2 px: GC_FGD;
 // <= backdrop eroded by 2 px, or on the border ring and not above object: GC_BGD; above 30 % of
 // the way from backdrop to object: GC_PR_FGD; else GC_PR_BGD.
 // With the noise hysteresis (UsesNoiseHysteresis): GC_BGD is <= noise eroded by 2 px (and the
 // border ring); every pixel above noise 8-connected to a GC_FGD pixel through pixels above noise
-// is at least GC_PR_FGD and a reach seed, unless it belongs to a region above noise that reaches
-// the border ring without passing through the sure object (dilated by 2 px): a stand or a cloth
-// that touches the frame's edge is not brought in, the object's own shadows are.
-// `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
-Trimap TrimapFromScore(const cv::Mat& score, const ScoreLevels& levels, const cv::Mat& roi,
-                       const GraphCutOptions& options);
+// is at least GC_PR_FGD and kept from the reach's limit, unless it belongs to a region above noise
+// that reaches the border ring without passing through the sure object (dilated by 2 px), or its
+// colour is common among that region's pixels on the border ring (16 levels a channel on a
+// square-root scale, one level of slack): a stand or a cloth that touches the frame's edge is not
+// brought in, nor a fold of it seen between an object's parts; the object's own shadows are. `roi`
+// (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
+Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
+                       const cv::Mat& roi, const GraphCutOptions& options);
 
 // The refined mask (CV_8UC1, 0/255) of `bgr` (CV_8UC3) from `trimap` (TrimapFromScore): the colour
 // cut (CutByColour) on the reduced copy, the result scaled up, and in a band of the scale's width

@@ -166,7 +166,7 @@ class PipelineSegmenter final : public Segmenter {
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(
-        bgr_w, scored.score, TrimapFromScore(scored.score, scored.levels, roi_w, cut), cut);
+        bgr_w, scored.score, TrimapFromScore(bgr_w, scored.score, scored.levels, roi_w, cut), cut);
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
     cv::Mat mask = Enlarged(mask_w, factor, BackdropDistance(bgr, backdrop, shadows),
