@@ -88,12 +88,10 @@ int ColourBin(const cv::Vec3b& c) {
          ColourLevel(c[2]);
 }
 
-// `candidates` (CV_8UC1) without the pixels whose colour is common among the pixels of `edge`:
-// a colour bin holding at least 8 of them and 0.5 % of `ring_px`, widened by one level each way.
-// What touches the frame's edge above the backdrop's noise (a stand's foot, a cloth) has these
-// colours.
-cv::Mat WithoutEdgeColours(const cv::Mat& candidates, const cv::Mat& bgr, const cv::Mat& edge,
-                           int ring_px) {
+// The colour bins common among the pixels of `edge` (CV_8UC1): a bin holding at least 8 of them
+// and 0.5 % of `ring_px`, widened by one level each way; empty when no bin is. What touches the
+// frame's edge above the backdrop's noise (a stand's foot, a cloth) has these colours.
+std::vector<std::uint8_t> EdgeColours(const cv::Mat& bgr, const cv::Mat& edge, int ring_px) {
   constexpr int kBins = kColourLevels * kColourLevels * kColourLevels;
   std::vector<int> counts(kBins, 0);
   for (int y = 0; y < bgr.rows; ++y) {
@@ -119,13 +117,20 @@ cv::Mat WithoutEdgeColours(const cv::Mat& candidates, const cv::Mat& bgr, const 
       }
     }
   }
-  if (!any) return candidates;
+  if (!any) common.clear();
+  return common;
+}
+
+// `candidates` (CV_8UC1) without the pixels whose colour is one of `colours` (EdgeColours).
+cv::Mat Without(const cv::Mat& candidates, const cv::Mat& bgr,
+                const std::vector<std::uint8_t>& colours) {
+  if (colours.empty()) return candidates;
   cv::Mat out = candidates.clone();
   for (int y = 0; y < bgr.rows; ++y) {
     const auto* p = bgr.ptr<cv::Vec3b>(y);
     auto* o = out.ptr<std::uint8_t>(y);
     for (int x = 0; x < bgr.cols; ++x) {
-      if (o[x] && common[static_cast<std::size_t>(ColourBin(p[x]))]) o[x] = 0;
+      if (o[x] && colours[static_cast<std::size_t>(ColourBin(p[x]))]) o[x] = 0;
     }
   }
   return out;
@@ -238,26 +243,23 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
   cv::Mat& labels = trimap.labels;
   labels = cv::Mat(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
   labels.setTo(cv::GC_PR_FGD, score > ProbableLevel(levels));
-  const cv::Mat above = score > levels.object;
-  const cv::Mat sure_object = Eroded(above, 2);
   const int ring = std::max(
       1, static_cast<int>(std::lround(options.border_fraction * std::min(score.cols, score.rows))));
   cv::Mat border(score.size(), CV_8UC1, cv::Scalar(255));
   if (score.cols > 2 * ring && score.rows > 2 * ring) {
     border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
   }
-  if (UsesNoiseHysteresis(levels)) {
-    const cv::Mat above_noise = score > levels.noise;
-    // What rises above the noise apart from the object's core and reaches the frame's edge (a
-    // stand, a cloth) is left to the reach and the cut as before.
-    const cv::Mat detached = above_noise & ~Dilated(sure_object, 2);
-    const cv::Mat edge = border & detached;
-    cv::Mat brought = ConnectedTo(above_noise, sure_object);
-    if (cv::countNonZero(edge) > 0) {
-      // Nor are the colours seen there (a fold of the cloth seen between a temple's columns).
-      brought = WithoutEdgeColours(brought & ~ConnectedTo(detached, edge), bgr, edge,
-                                   cv::countNonZero(border));
-    }
+  const bool hysteresis = UsesNoiseHysteresis(levels);
+  const cv::Mat above_noise = hysteresis ? cv::Mat(score > levels.noise) : cv::Mat();
+  // With the hysteresis: the colours of what rises above the noise on the frame's edge (a
+  // stand's foot, a cloth) are never object for sure nor brought in.
+  const std::vector<std::uint8_t> edge_colours =
+      hysteresis ? EdgeColours(bgr, border & above_noise, cv::countNonZero(border))
+                 : std::vector<std::uint8_t>();
+  const cv::Mat above = Without(score > levels.object, bgr, edge_colours);
+  const cv::Mat sure_object = Eroded(above, 2);
+  if (hysteresis) {
+    const cv::Mat brought = Without(ConnectedTo(above_noise, sure_object), bgr, edge_colours);
     labels.setTo(cv::GC_PR_FGD, brought);
     labels.setTo(cv::GC_BGD, Eroded(~above_noise, 2));
     trimap.kept = brought & ~sure_object;

@@ -61,12 +61,11 @@ struct Trimap {
 // the way from backdrop to object: GC_PR_FGD; else GC_PR_BGD.
 // With the noise hysteresis (UsesNoiseHysteresis): GC_BGD is <= noise eroded by 2 px (and the
 // border ring); every pixel above noise 8-connected to a GC_FGD pixel through pixels above noise
-// is at least GC_PR_FGD and kept from the reach's limit, unless it belongs to a region above noise
-// that reaches the border ring without passing through the sure object (dilated by 2 px), or its
-// colour is common among that region's pixels on the border ring (16 levels a channel on a
-// square-root scale, one level of slack): a stand or a cloth that touches the frame's edge is not
-// brought in, nor a fold of it seen between an object's parts; the object's own shadows are. `roi`
-// (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
+// is at least GC_PR_FGD and kept from the reach's limit, unless its colour is common among the
+// pixels above noise on the border ring (away from the sure object; 16 levels a channel on a
+// square-root scale, one level of slack): a stand or a cloth that touches the frame's edge, and a
+// fold of it seen between an object's parts, are not brought in; the object's own shadows are.
+// `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
 Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
                        const cv::Mat& roi, const GraphCutOptions& options);
 

@@ -136,6 +136,38 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealisticBackdrops,
                                                      "black_with_shadowed_object"}),
                          [](const auto& p) { return p.param.name; });
 
+// A drawn object over black: a lit part, a deep shadow under it far taller than the graph cut's
+// reach from the lit part (level 25 against a backdrop of 4 with noise sigma 3), and a stand
+// from the shadow's bottom to the frame's edge (level 60) that is not object.
+TEST(NoiseHysteresis, BringsInADeepShadowButNotAStandAtTheFrameEdge) {
+  const cv::Size size(768, 576);
+  cv::Mat image(size, CV_8UC3, cv::Scalar(4, 4, 4));
+  cv::Mat truth(size, CV_8UC1, cv::Scalar(0));
+  const cv::Rect lit(284, 60, 200, 160), shadow(284, 220, 200, 220);
+  image(lit).setTo(cv::Scalar(150, 170, 190));
+  image(shadow).setTo(cv::Scalar(22, 25, 28));
+  truth(lit).setTo(255);
+  truth(shadow).setTo(255);
+  const cv::Rect stand(354, 440, 60, size.height - 440);
+  image(stand).setTo(cv::Scalar(58, 60, 62));
+  image = test_support::WithNoise(image, 3.0, 7);
+  for (const std::string method : {"graphcut", "auto"}) {
+    SegmentOptions options;
+    options.method = method;
+    auto segmenter = CreateSegmenter(options);
+    ASSERT_TRUE(segmenter.has_value());
+    Expected<cv::Mat> mask = (*segmenter)->Segment(image, cv::Mat());
+    ASSERT_TRUE(mask.has_value()) << mask.error().ToString();
+    const double stand_share =
+        cv::countNonZero((*mask)(cv::Rect(stand.x, stand.y + 8, stand.width, stand.height - 8))) /
+        static_cast<double>(stand.area());
+    std::printf("drawn shadow and stand, %s: IoU %.4f, stand in the mask %.3f\n", method.c_str(),
+                IoU(*mask, truth), stand_share);
+    EXPECT_GE(IoU(*mask, truth), 0.97) << method;
+    EXPECT_LT(stand_share, 0.02) << method;
+  }
+}
+
 TEST(SetSegmentation, ATurntableSequenceTeachesTheBackdrop) {
   auto camera = Camera("vase", 1.0);
   ASSERT_NE(camera, nullptr);

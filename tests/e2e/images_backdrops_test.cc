@@ -1,9 +1,10 @@
 // `revolve reconstruct --images` end to end on turntable sets like the issue's held-out ones
 // (issue 17), with a known truth: objects the simulator renders from 12 calibrated views (a
 // cameras file of 3x4 matrices), composited over
-// - a dark backdrop with a dark stand under the object (a post down to the frame's bottom edge,
-//   the same in every view, as a turned cylinder is);
-// - a black backdrop with the object's lower third in deep shadow (15 % of its brightness).
+// - a dark backdrop with a stand under the object (a post down to the frame's bottom edge, the
+//   same in every view, as a turned cylinder is), dark grey, or light grey above the object level;
+// - a black backdrop with the object's lower third in deep shadow (15 % of its brightness);
+// - both: the shadowed object on a stand over black.
 // The model is reprojected into every view and compared with the true silhouettes (bar 0.975),
 // and revolve's own masks must agree with its model (report.json, bar 0.95).
 #include <gtest/gtest.h>
@@ -33,12 +34,13 @@ namespace rc = revolve::reconstruct;
 
 constexpr int kViews = 12;
 
-enum class Backdrop { kDarkWithStand, kBlackWithShadows };
+enum class Backdrop { kDarkWithStand, kBlackWithShadows, kBlackWithShadowsOnAStand };
 
 struct SetCase {
   Backdrop backdrop;
   std::string name;
   std::string object;
+  cv::Scalar stand_bgr = cv::Scalar(46, 42, 44);  // a post under the object (not kBlackWithShadows)
 };
 
 // A set on disk: view_NN.png and cameras.txt in `dir`; the true masks and views returned.
@@ -64,8 +66,10 @@ WrittenSet WriteSet(const SetCase& set, const fs::path& dir) {
     const capture::RenderOutput render = (*camera)->RenderWithTruth(angle_deg, 1);
     const cv::Size size = render.image.size();
     cv::Mat image;
-    if (set.backdrop == Backdrop::kDarkWithStand) {
-      image = cv::Mat(size, CV_8UC3, cv::Scalar(14, 12, 13));
+    const bool black = set.backdrop != Backdrop::kDarkWithStand;
+    image = black ? cv::Mat(size, CV_8UC3, cv::Scalar(4, 4, 4))
+                  : cv::Mat(size, CV_8UC3, cv::Scalar(14, 12, 13));
+    if (set.backdrop != Backdrop::kBlackWithShadows) {
       // The stand: a post on the turntable's axis from under the object to the frame's bottom,
       // a quarter of the object's width, dark grey.
       const cv::Rect box = cv::boundingRect(render.true_mask);
@@ -73,12 +77,10 @@ WrittenSet WriteSet(const SetCase& set, const fs::path& dir) {
       const int half = box.width / 8;
       const cv::Rect post(middle - half, box.y + box.height - 6, 2 * half,
                           size.height - (box.y + box.height - 6));
-      image(post).setTo(cv::Scalar(46, 42, 44));
-    } else {
-      image = cv::Mat(size, CV_8UC3, cv::Scalar(4, 4, 4));
+      image(post).setTo(set.stand_bgr);
     }
     render.image.copyTo(image, render.true_mask);
-    if (set.backdrop == Backdrop::kBlackWithShadows) {
+    if (black) {
       test_support::ShadeLowerThird(image, render.true_mask, 0.15);
     }
     image = test_support::WithNoise(image, 3.0, static_cast<std::uint64_t>(100 + k));
@@ -140,9 +142,12 @@ TEST_P(ImagesOnRealBackdrops, TheModelMatchesTheTruthAndTheMasksTheModel) {
 INSTANTIATE_TEST_SUITE_P(
     HeldOutLike, ImagesOnRealBackdrops,
     ::testing::Values(SetCase{Backdrop::kDarkWithStand, "dark_with_stand", "vase"},
-                      SetCase{Backdrop::kDarkWithStand, "dark_with_stand", "cylinder"},
+                      SetCase{Backdrop::kDarkWithStand, "dark_with_light_stand", "cylinder",
+                              cv::Scalar(96, 92, 98)},
                       SetCase{Backdrop::kBlackWithShadows, "black_with_shadows", "vase"},
-                      SetCase{Backdrop::kBlackWithShadows, "black_with_shadows", "cone"}),
+                      SetCase{Backdrop::kBlackWithShadows, "black_with_shadows", "cone"},
+                      SetCase{Backdrop::kBlackWithShadowsOnAStand, "black_with_shadows_on_a_stand",
+                              "vase", cv::Scalar(96, 92, 98)}),
     [](const auto& p) { return p.param.name + "_" + p.param.object; });
 
 }  // namespace
