@@ -197,6 +197,29 @@ TEST(SetSegmentation, ATurntableSequenceTeachesTheBackdrop) {
   EXPECT_GE(sum / frames.size(), 0.97);
 }
 
+TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
+  std::vector<cv::Mat> frames;
+  std::vector<cv::Mat> truths;
+  for (int k = 0; k < 8; ++k) {
+    const Frame frame = MakeScene(Scene::kBlackShadowedObject, "vase", 45.0 * k);
+    ASSERT_FALSE(frame.image.empty());
+    frames.push_back(frame.image);
+    truths.push_back(frame.truth);
+  }
+  SegmentOptions options;
+  options.method = "auto";
+  Expected<SetSegmentation> set = SegmentImageSet(frames, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  double sum = 0.0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    EXPECT_TRUE(set->problems[k].empty()) << set->problems[k];
+    sum += IoU(set->masks[k], truths[k]);
+  }
+  std::printf("turntable over black, deep shadows: auto (%s) mean IoU %.4f\n", set->method.c_str(),
+              sum / frames.size());
+  EXPECT_GE(sum / frames.size(), 0.97);
+}
+
 TEST(SetSegmentation, AFrameWithoutObjectIsNamedNotFatal) {
   auto camera = Camera("sphere", 1.0);
   ASSERT_NE(camera, nullptr);
