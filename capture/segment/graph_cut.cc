@@ -112,7 +112,8 @@ std::vector<std::uint8_t> EdgeColours(const cv::Mat& bgr, const cv::Mat& edge, i
     for (int a0 = std::max(0, l0 - 1); a0 <= std::min(kColourLevels - 1, l0 + 1); ++a0) {
       for (int a1 = std::max(0, l1 - 1); a1 <= std::min(kColourLevels - 1, l1 + 1); ++a1) {
         for (int a2 = std::max(0, l2 - 1); a2 <= std::min(kColourLevels - 1, l2 + 1); ++a2) {
-          common[static_cast<std::size_t>((a0 * kColourLevels + a1) * kColourLevels + a2)] = 1;
+          const int bin = (a0 * kColourLevels + a1) * kColourLevels + a2;
+          common[static_cast<std::size_t>(bin)] = 1;
         }
       }
     }
@@ -167,7 +168,7 @@ double BackdropNoiseCeiling(const cv::Mat& score, const cv::Mat& roi) {
   cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
   if (box.area() == 0) box = cv::Rect(0, 0, score.cols, score.rows);
   std::vector<int> values;
-  values.reserve(static_cast<std::size_t>(2 * (box.width + box.height)));
+  values.reserve(2 * (static_cast<std::size_t>(box.width) + static_cast<std::size_t>(box.height)));
   for (int x = box.x; x < box.x + box.width; ++x) {
     values.push_back(score.at<std::uint8_t>(box.y, x));
     values.push_back(score.at<std::uint8_t>(box.y + box.height - 1, x));
