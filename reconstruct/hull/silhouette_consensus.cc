@@ -62,22 +62,30 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   for (const std::optional<Error>& error : errors) {
     if (error) return std::unexpected(*error);
   }
+  // Each view carves once; hull i is the other views' survivors (VisualHull::LeaveOneOut).
+  const VisualHull::LeaveOneOut hulls(*grid, std::move(prepared));
+  HullSurfaceOptions midpoints;
+  midpoints.sub_voxel = false;
   ParallelFor(0, masks.size(), [&](std::size_t i) {
-    VisualHull hull(*grid);
-    for (std::size_t j = 0; j < masks.size(); ++j) {
-      if (j != i) hull.Integrate(prepared[j]);
-    }
-    const cv::Mat others = RenderSilhouette(hull.ExtractSurface(), views[i]);
-    result.agreement[i] = MaskIoU(masks[i], others);
-    // The coarse hull's surface may lie up to half a voxel inside the true one.
+    const Mesh surface = hulls.Without(i, /*keep_views=*/false).ExtractSurface(midpoints);
+    const cv::Mat others = RenderSilhouette(surface, views[i]);
+    // The midpoint surface lies within a voxel of the hull's: dilated by a voxel's span.
     const int radius =
         std::max(options.tolerance_px,
-                 static_cast<int>(std::ceil(0.5 * VoxelSpanPx(views[i], middle, grid->voxel_mm))));
+                 static_cast<int>(std::ceil(VoxelSpanPx(views[i], middle, grid->voxel_mm))));
+    // Only the pixels within `radius` of either silhouette can be set in what follows.
+    const cv::Rect image(0, 0, others.cols, others.rows);
+    cv::Rect roi = cv::boundingRect(others) | cv::boundingRect(masks[i]);
+    roi =
+        cv::Rect(roi.x - radius, roi.y - radius, roi.width + 2 * radius, roi.height + 2 * radius) &
+        image;
+    result.agreement[i] = MaskIoU(masks[i](roi), others(roi));
     cv::Mat allowed;
     cv::dilate(
-        others, allowed,
+        others(roi), allowed,
         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-    result.masks[i] = masks[i] & allowed;
+    result.masks[i] = cv::Mat::zeros(masks[i].size(), CV_8UC1);
+    cv::bitwise_and(masks[i](roi), allowed, result.masks[i](roi));
   });
   return result;
 }

@@ -19,8 +19,9 @@ namespace revolve::reconstruct {
 
 struct ConsensusOptions {
   int resolution = 64;  // voxels along the longest side of the box, per leave-one-out hull
-  // The other views' silhouette is dilated by this, or by half a voxel's projected span if that
-  // is more, before the cut (the coarse hull lies up to half a voxel inside the true one).
+  // The other views' silhouette (the coarse hull's marching-cubes surface, vertices at the
+  // edges' midpoints: within a voxel of the continuous hull's) is dilated by this, or by a
+  // voxel's projected span if that is more, before the cut.
   int tolerance_px = 1;
 };
 
@@ -31,6 +32,8 @@ struct SilhouetteConsensus {
   std::vector<cv::Mat> masks;
 };
 
+// The leave-one-out hulls come from one carve per view (VisualHull::LeaveOneOut), not one carve
+// per view and hull.
 // Contract: masks (CV_8UC1) and views (depth > 0 in front of each camera, i.e. normalised)
 // of one count (>= 3), each mask of its view's size. Errors: bad_input otherwise, or an empty
 // or inverted box.

@@ -542,6 +542,28 @@ void VisualHull::Integrate(const PreparedView& view) {
   views_.push_back(*view.data_);
 }
 
+VisualHull::LeaveOneOut::LeaveOneOut(const VoxelGrid& grid, std::vector<PreparedView> views)
+    : grid_(grid), views_(std::move(views)), survivors_(views_.size()) {
+  ParallelFor(0, views_.size(), [&](std::size_t j) {
+    VisualHull hull(grid_);
+    const ViewData& data = *views_[j].data_;
+    hull.Carve(data, MakeSat(data));
+    survivors_[j] = std::move(hull.bricks_);
+  });
+}
+
+VisualHull VisualHull::LeaveOneOut::Without(std::size_t i, bool keep_views) const {
+  VisualHull hull(grid_);
+  for (std::size_t j = 0; j < views_.size(); ++j) {
+    if (j == i) continue;
+    const std::vector<std::uint64_t>& survivors = survivors_[j];
+    for (std::size_t b = 0; b < hull.bricks_.size(); ++b) hull.bricks_[b] &= survivors[b];
+    if (keep_views) hull.views_.push_back(*views_[j].data_);
+  }
+  hull.RebuildFlags();
+  return hull;
+}
+
 void VisualHull::Carve(const ViewData& data, const Sat& sat) {
   // The root: the whole grid.
   const int root = static_cast<int>(level_dims_.size()) - 1;
