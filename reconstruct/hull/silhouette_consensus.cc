@@ -68,7 +68,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   midpoints.sub_voxel = false;
   ParallelFor(0, masks.size(), [&](std::size_t i) {
     const Mesh surface = hulls.Without(i, /*keep_views=*/false).ExtractSurface(midpoints);
-    const cv::Mat others = RenderSilhouette(surface, views[i]);
+    const cv::Mat others = RenderSilhouette(surface, views[i], /*closed=*/true);
     // The midpoint surface lies within a voxel of the hull's: dilated by a voxel's span.
     const int radius =
         std::max(options.tolerance_px,

@@ -75,17 +75,21 @@ void ClipRun(const Edge& edge, double sign, int v, int* lo, int* hi) {
 
 }  // namespace
 
-cv::Mat RenderSilhouette(const Mesh& mesh, const View& view) {
+cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
   cv::Mat out(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
   std::vector<Eigen::Vector2d> projected(mesh.vertices.size());
   std::vector<std::uint8_t> visible(mesh.vertices.size(), 0);
+  bool all_visible = true;
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     Eigen::Vector2d pixel;
     if (view.Project(mesh.vertices[i].cast<double>(), &pixel)) {
       projected[i] = pixel;
       visible[i] = 1;
+    } else {
+      all_visible = false;
     }
   }
+  const bool one_winding = closed && all_visible;
   // Per face and row of its bounding rectangle, the pixel centres inside all three edges (edges
   // inclusive). Each edge's test, sign * (e_x (v - p_y) - e_y (u - p_x)) >= 0, is monotone in u
   // even as rounded (each operation is), so the pixels that pass it are a prefix or a suffix of
@@ -97,7 +101,7 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view) {
     const double x1 = projected[face[1]].x(), y1 = projected[face[1]].y();
     const double x2 = projected[face[2]].x(), y2 = projected[face[2]].y();
     const double area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
-    if (area == 0.0 || !std::isfinite(area)) continue;
+    if (area == 0.0 || !std::isfinite(area) || (one_winding && area < 0.0)) continue;
     const int u0 = std::max(0, static_cast<int>(std::ceil(std::min(std::min(x0, x1), x2))));
     const int u1 =
         std::min(view.width_px - 1, static_cast<int>(std::floor(std::max(std::max(x0, x1), x2))));
@@ -147,12 +151,12 @@ double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
 }
 
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks) {
+                                         const std::vector<cv::Mat>& masks, bool closed) {
   ReprojectionStats stats;
   // The views on all cores, each IoU in its slot; the sum and the worst in view order.
   stats.iou.resize(views.size());
   ParallelFor(0, views.size(), [&](std::size_t i) {
-    stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i]), masks[i]);
+    stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i], closed), masks[i]);
   });
   double sum = 0.0;
   for (std::size_t i = 0; i < views.size(); ++i) {

@@ -18,7 +18,13 @@ namespace revolve::reconstruct {
 // visual hull's point test read backwards: a pixel is set iff its ray meets the mesh. Triangles
 // with a vertex on or behind the camera plane are skipped (the view's contract: depth > 0 in
 // front).
-cv::Mat RenderSilhouette(const Mesh& mesh, const View& view);
+//
+// `closed`: the caller knows the mesh closed and consistently oriented (MeshStats::closed and
+// ::oriented), and only the faces whose projection winds one way (positive signed area) are
+// drawn, half the work: along any ray from a camera outside the solid, the surface is entered
+// as often as it is left, so every pixel whose ray meets it is covered by a face of each
+// winding. When some vertex is not in front of the camera, every face is drawn.
+cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed = false);
 
 // |a and b| / |a or b| over non-zero pixels of two CV_8UC1 images of one size; 1 when both are
 // empty. Precondition: same size and type.
@@ -31,10 +37,10 @@ struct ReprojectionStats {
   int worst_view = -1;
 };
 
-// RenderSilhouette + MaskIoU for every view. Precondition: masks.size() == views.size(), each
-// mask of its view's size.
+// RenderSilhouette (with `closed`) + MaskIoU for every view, on all cores. Precondition:
+// masks.size() == views.size(), each mask of its view's size.
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks);
+                                         const std::vector<cv::Mat>& masks, bool closed = false);
 
 // Inside test of a solid (true = inside).
 using InsideTest = std::function<bool(const Eigen::Vector3d&)>;

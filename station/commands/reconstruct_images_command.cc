@@ -95,9 +95,17 @@ class ImagesRun {
     REVOLVE_RETURN_IF_ERROR(PrepareOutput());
     REVOLVE_RETURN_IF_ERROR(Timed("load_ms", [&] { return Load(); }));
     REVOLVE_RETURN_IF_ERROR(Timed("segment_ms", [&] { return Segment(); }));
-    REVOLVE_RETURN_IF_ERROR(RequireTwoUsable());
-    REVOLVE_RETURN_IF_ERROR(Timed("cameras_ms", [&] { return CamerasAndVolume(); }));
-    REVOLVE_RETURN_IF_ERROR(Timed("consensus_ms", [&] { return Consensus(); }));
+    const Expected<void> judged = [&]() -> Expected<void> {
+      REVOLVE_RETURN_IF_ERROR(RequireTwoUsable());
+      REVOLVE_RETURN_IF_ERROR(Timed("cameras_ms", [&] { return CamerasAndVolume(); }));
+      return Timed("consensus_ms", [&] { return Consensus(); });
+    }();
+    // The masks, for a person to check, once: those the carving uses, or the segmentation's
+    // when the run stops before (why it stopped is then told, the masks written).
+    const Expected<void> written =
+        Timed("masks_ms", [&] { return WriteMasks(options_.out, names_, frames_, masks_); });
+    REVOLVE_RETURN_IF_ERROR(judged);
+    REVOLVE_RETURN_IF_ERROR(written);
     REVOLVE_RETURN_IF_ERROR(Timed("reconstruct_ms", [&] { return Reconstruct(); }));
     REVOLVE_RETURN_IF_ERROR(Timed("write_ms", [&] { return WriteFiles(); }));
     REVOLVE_RETURN_IF_ERROR(Timed("metrics_ms", [&] { return Measure(); }));
@@ -143,16 +151,16 @@ class ImagesRun {
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
                         photos_ ? "photos" : "binary silhouettes", set_.width_px, set_.height_px,
                         options_.images.string());
-    for (const rc::SetImage& image : set_.images) {
+    for (rc::SetImage& image : set_.images) {
       names_.push_back(image.file_name);
-      masks_.push_back(image.mask);
+      masks_.push_back(std::move(image.mask));  // held once: the consensus replaces them
       frames_.push_back(image.image);
     }
     problems_.assign(masks_.size(), std::string());
     return {};
   }
 
-  // Silhouettes: segmented here (photos), saved for a person to check before anything can fail.
+  // Silhouettes: segmented here (photos).
   Expected<void> Segment() {
     if (photos_ && !legacy_threshold_) {
       SetMasks segmented;
@@ -167,7 +175,7 @@ class ImagesRun {
            photos_ ? fmt::format("--segment threshold: any channel above {}", options_.threshold)
                    : "the images are silhouettes already"}};
     }
-    return WriteMasks(options_.out, names_, frames_, masks_);
+    return {};
   }
 
   void CollectUsable() {
@@ -280,7 +288,7 @@ class ImagesRun {
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
     agreement_ = std::move(*agreement);
     CollectUsable();
-    return WriteMasks(options_.out, names_, frames_, masks_);
+    return {};
   }
 
   Expected<void> Reconstruct() {
@@ -362,7 +370,8 @@ class ImagesRun {
       report_["model"]["rows"] = meridian_model_->row_count;
       report_["model"]["texture_images"] = meridian_model_->mesh.view_texture.images.size();
     }
-    reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_);
+    reprojection_ =
+        rc::SilhouetteReprojection(mesh_, views_, masks_, stats_.closed && stats_.oriented);
     nlohmann::json per_view =
         JudgeViews(names_, masks_, reprojection_.iou, problems_, kMinAgreeingIoU, out_);
     for (std::size_t i = 0; i < per_view.size(); ++i) {

@@ -202,5 +202,34 @@ TEST(Threads, SilhouetteRunsEqualTestingEveryPixel) {
   }
 }
 
+// A closed, consistently oriented mesh drawn with one winding of faces (`closed`) casts the
+// silhouette every face casts: hull surfaces (exact and midpoint vertices, a coarse hull) in
+// perspective views around and above it and in the thesis's orthographic view.
+TEST(Threads, ClosedSilhouetteEqualsEveryFace) {
+  const SmallScan scan = MakeScan(8);
+  VisualHull hull(scan.grid);
+  VisualHull coarse(*VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 120}, 20));
+  for (std::size_t k = 0; k < scan.views.size(); ++k) {
+    ASSERT_TRUE(hull.Integrate(scan.masks[k], scan.views[k]));
+    ASSERT_TRUE(coarse.Integrate(scan.masks[k], scan.views[k]));
+  }
+  HullSurfaceOptions midpoints;
+  midpoints.sub_voxel = false;
+  const std::vector<Mesh> meshes = {hull.ExtractSurface(), hull.ExtractSurface(midpoints),
+                                    coarse.ExtractSurface(midpoints)};
+  std::vector<View> views = MakeScan(7).views;
+  views.push_back(ThesisView(320, 240, 30.0));
+  views.push_back(testing::ViewOf(testing::StationRig(300.0, 70.0, 40.0, 320, 240), 15.0));
+  for (const Mesh& mesh : meshes) {
+    const MeshStats stats = ComputeStats(mesh);
+    ASSERT_TRUE(stats.closed && stats.oriented);
+    for (const View& view : views) {
+      const cv::Mat every = RenderSilhouette(mesh, view);
+      ASSERT_GT(cv::countNonZero(every), 0);
+      EXPECT_EQ(cv::countNonZero(every != RenderSilhouette(mesh, view, /*closed=*/true)), 0);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace revolve::reconstruct

@@ -181,6 +181,44 @@ TEST(VisualHull, HierarchicalEqualsNaiveOnSphere36Views) {
   EXPECT_NEAR(hierarchical.OccupiedCount(), expected, 0.02 * expected);
 }
 
+// The silhouette consensus's hulls: each from one carve per view, equal to integrating every
+// other view in order (occupancy and surface), on irregular masks, a view that sees only part
+// of the grid, and a grid whose sides are not multiples of a brick.
+TEST(VisualHull, LeaveOneOutEqualsIntegratingTheOtherViews) {
+  std::mt19937 rng(11);
+  const Rig rig = StationRig(300.0, 25.0, 40.0, 200, 150);
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 38);
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  std::vector<VisualHull::PreparedView> prepared;
+  for (int k = 0; k < 7; ++k) {
+    masks.push_back(IrregularMask(rig, 51.0 * k, &rng));
+    views.push_back(ViewOf(rig, 51.0 * k));
+    prepared.push_back(*VisualHull::PrepareView(masks.back(), views.back()));
+  }
+  views[3] = ViewOf(StationRig(90.0, 10.0, 40.0, 200, 150), 153.0);  // close: sees part
+  prepared[3] = *VisualHull::PrepareView(masks[3], views[3]);
+  const VisualHull::LeaveOneOut hulls(grid, prepared);
+  ASSERT_EQ(hulls.size(), 7u);
+  for (std::size_t i = 0; i < masks.size(); ++i) {
+    VisualHull expected(grid);
+    for (std::size_t j = 0; j < masks.size(); ++j) {
+      if (j != i) {
+        ASSERT_TRUE(expected.Integrate(masks[j], views[j]));
+      }
+    }
+    ASSERT_GT(expected.OccupiedCount(), 1000);
+    const VisualHull got = hulls.Without(i);
+    ExpectSameOccupancy(got, expected);
+    EXPECT_EQ(got.view_count(), 6);
+    const Mesh a = got.ExtractSurface();
+    const Mesh b = expected.ExtractSurface();
+    EXPECT_EQ(a.vertices, b.vertices) << "view " << i;
+    EXPECT_EQ(a.faces, b.faces) << "view " << i;
+    ExpectSameOccupancy(hulls.Without(i, /*keep_views=*/false), expected);
+  }
+}
+
 TEST(VisualHull, AViewDoesNotCarveWhatItCannotSee) {
   const VoxelGrid grid = Grid({-60, -60, 0}, {60, 60, 120}, 40);
   const Rig rig = StationRig();
