@@ -195,7 +195,12 @@ std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image) {
 cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
   cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
   const int channels = image.channels();
-  for (int v = 0; v < image.rows; ++v) {
+  if (channels == 1 || channels == 3) {
+    // Background where every channel is at most the threshold (OpenCV's vector loops).
+    cv::inRange(image, cv::Scalar::all(0), cv::Scalar::all(options.threshold), mask);
+    cv::bitwise_not(mask, mask);
+  }
+  for (int v = 0; v < image.rows && channels != 1 && channels != 3; ++v) {
     const auto* in = image.ptr<std::uint8_t>(v);
     auto* out = mask.ptr<std::uint8_t>(v);
     for (int u = 0; u < image.cols; ++u) {

@@ -77,8 +77,21 @@ MeshStats ComputeStats(const Mesh& mesh) {
   stats.oriented = true;
   stats.closed = true;
   tbb::parallel_sort(directed.begin(), directed.end());
-  const auto uses_of = [&directed](std::uint64_t k) {
-    const auto [first, last] = std::equal_range(directed.begin(), directed.end(), k);
+  // Where each vertex's edges start in `directed` (sorted by their first vertex), so that a
+  // reverse edge is looked up among its vertex's few edges.
+  std::vector<std::size_t> first_of(mesh.vertices.size() + 1, directed.size());
+  for (std::size_t i = directed.size(); i-- > 0;) {
+    const auto a = static_cast<std::size_t>(directed[i] >> 32);
+    if (a < mesh.vertices.size()) first_of[a] = i;
+  }
+  for (std::size_t v = mesh.vertices.size(); v-- > 0;) {
+    first_of[v] = std::min(first_of[v], first_of[v + 1]);
+  }
+  const auto uses_of = [&](std::uint64_t k) {
+    const auto a = static_cast<std::size_t>(k >> 32);
+    const auto begin = a < mesh.vertices.size() ? directed.begin() + first_of[a] : directed.begin();
+    const auto end = a < mesh.vertices.size() ? directed.begin() + first_of[a + 1] : directed.end();
+    const auto [first, last] = std::equal_range(begin, end, k);
     return static_cast<int>(last - first);
   };
   for (std::size_t i = 0; i < directed.size();) {

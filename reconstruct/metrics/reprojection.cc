@@ -135,19 +135,15 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
 }
 
 double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
-  std::int64_t both = 0;
-  std::int64_t either = 0;
-  for (int v = 0; v < a.rows; ++v) {
-    const auto* ra = a.ptr<std::uint8_t>(v);
-    const auto* rb = b.ptr<std::uint8_t>(v);
-    for (int u = 0; u < a.cols; ++u) {
-      const bool x = ra[u] != 0;
-      const bool y = rb[u] != 0;
-      both += x && y;
-      either += x || y;
-    }
-  }
-  return either == 0 ? 1.0 : static_cast<double>(both) / static_cast<double>(either);
+  // Non-zero in both: the smaller value is; in either: the larger (OpenCV's vector loops).
+  cv::Mat both;
+  cv::Mat either;
+  cv::min(a, b, both);
+  cv::max(a, b, either);
+  const int union_px = cv::countNonZero(either);
+  return union_px == 0
+             ? 1.0
+             : static_cast<double>(cv::countNonZero(both)) / static_cast<double>(union_px);
 }
 
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,

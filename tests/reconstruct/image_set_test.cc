@@ -55,6 +55,35 @@ TEST(BinarySilhouette, EitherPolarityFromTheBorder) {
   EXPECT_FALSE(BinarySilhouette(grey).has_value());
 }
 
+// The threshold alone (no morphology), on random grey, colour and four-channel images, at the
+// edges of the range: object where any of the first three channels exceeds it.
+TEST(SegmentPhoto, ThresholdIsAnyOfTheFirstThreeChannelsAbove) {
+  PhotoSegmentation options;
+  options.close_px = 0;
+  options.open_px = 0;
+  options.min_component_fraction = 0.0;
+  options.fill_holes = false;
+  cv::RNG rng(5);
+  for (int channels : {1, 3, 4}) {
+    cv::Mat image(37, 53, CV_8UC(channels));
+    rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+    for (int threshold : {0, 20, 128, 254}) {
+      options.threshold = threshold;
+      const cv::Mat mask = SegmentPhoto(image, options);
+      for (int v = 0; v < image.rows; ++v) {
+        for (int u = 0; u < image.cols; ++u) {
+          bool object = false;
+          for (int c = 0; c < std::min(channels, 3); ++c) {
+            object |= image.ptr<std::uint8_t>(v)[u * channels + c] > threshold;
+          }
+          ASSERT_EQ(mask.at<std::uint8_t>(v, u), object ? 255 : 0)
+              << channels << " channels, threshold " << threshold << " at " << u << "," << v;
+        }
+      }
+    }
+  }
+}
+
 TEST(SegmentPhoto, AnyChannelAboveTheThresholdHolesFilled) {
   cv::Mat photo(60, 80, CV_8UC3, cv::Scalar(5, 5, 5));
   cv::circle(photo, {40, 30}, 20, cv::Scalar(10, 10, 120), cv::FILLED);  // red object
