@@ -55,6 +55,89 @@ TEST(BinarySilhouette, EitherPolarityFromTheBorder) {
   EXPECT_FALSE(BinarySilhouette(grey).has_value());
 }
 
+// SegmentPhoto as it was written first, on the whole image (the function now works on the
+// object's rectangle).
+cv::Mat SegmentWholeImage(const cv::Mat& image, const PhotoSegmentation& options) {
+  const auto disc = [](int r) {
+    return cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1));
+  };
+  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
+  for (int v = 0; v < image.rows; ++v) {
+    for (int u = 0; u < image.cols; ++u) {
+      for (int c = 0; c < std::min(image.channels(), 3); ++c) {
+        if (image.ptr<std::uint8_t>(v)[u * image.channels() + c] > options.threshold) {
+          mask.at<std::uint8_t>(v, u) = 255;
+        }
+      }
+    }
+  }
+  if (options.close_px > 0) cv::morphologyEx(mask, mask, cv::MORPH_CLOSE, disc(options.close_px));
+  if (options.open_px > 0) cv::morphologyEx(mask, mask, cv::MORPH_OPEN, disc(options.open_px));
+  if (options.min_component_fraction > 0.0) {
+    cv::Mat labels, stats, centroids;
+    const int count = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+    int largest = 0;
+    for (int i = 1; i < count; ++i) largest = std::max(largest, stats.at<int>(i, cv::CC_STAT_AREA));
+    for (int v = 0; v < mask.rows && count > 2; ++v) {
+      for (int u = 0; u < mask.cols; ++u) {
+        const int l = labels.at<int>(v, u);
+        if (l > 0 &&
+            stats.at<int>(l, cv::CC_STAT_AREA) < options.min_component_fraction * largest) {
+          mask.at<std::uint8_t>(v, u) = 0;
+        }
+      }
+    }
+  }
+  if (options.fill_holes) {
+    cv::Mat padded;
+    cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::Mat flood = padded.clone();
+    cv::floodFill(flood, cv::Point(0, 0), cv::Scalar(255), nullptr, cv::Scalar(), cv::Scalar(), 4);
+    cv::Mat holes = ~flood;
+    if (options.max_hole_area_px > 0) {
+      cv::Mat labels, stats, centroids;
+      cv::connectedComponentsWithStats(holes, labels, stats, centroids, 4, CV_32S);
+      for (int v = 0; v < holes.rows; ++v) {
+        for (int u = 0; u < holes.cols; ++u) {
+          const int l = labels.at<int>(v, u);
+          if (l > 0 && stats.at<int>(l, cv::CC_STAT_AREA) > options.max_hole_area_px) {
+            holes.at<std::uint8_t>(v, u) = 0;
+          }
+        }
+      }
+    }
+    const cv::Mat filled = padded | holes;
+    mask = filled(cv::Rect(1, 1, mask.cols, mask.rows)).clone();
+  }
+  return mask;
+}
+
+// Blobs, specks, holes of every size and shapes cut by the image border: the same mask as on
+// the whole image, for each option.
+TEST(SegmentPhoto, ObjectRectangleGivesTheWholeImagesResult) {
+  cv::RNG rng(9);
+  for (int trial = 0; trial < 12; ++trial) {
+    cv::Mat image(120, 160, CV_8UC3, cv::Scalar(0, 0, 0));
+    const int blobs = 1 + trial % 5;
+    for (int b = 0; b < 3 * blobs; ++b) {
+      const cv::Point centre(rng.uniform(-10, 170), rng.uniform(-10, 130));
+      const int radius = b % 3 == 2 ? rng.uniform(1, 3) : rng.uniform(3, 30);
+      const cv::Scalar colour =
+          b % 4 == 3 ? cv::Scalar(0, 0, 0)
+                     : cv::Scalar(rng.uniform(0, 256), rng.uniform(0, 256), rng.uniform(30, 256));
+      cv::circle(image, centre, radius, colour, cv::FILLED);
+    }
+    PhotoSegmentation options;
+    options.close_px = trial % 4;
+    options.open_px = trial % 3;
+    options.min_component_fraction = trial % 2 ? 0.05 : 0.0;
+    options.max_hole_area_px = trial % 3 == 1 ? 40 : 0;
+    options.fill_holes = trial % 5 != 4;
+    const cv::Mat expected = SegmentWholeImage(image, options);
+    EXPECT_EQ(cv::countNonZero(expected != SegmentPhoto(image, options)), 0) << "trial " << trial;
+  }
+}
+
 // The threshold alone (no morphology), on random grey, colour and four-channel images, at the
 // edges of the range: object where any of the first three channels exceeds it.
 TEST(SegmentPhoto, ThresholdIsAnyOfTheFirstThreeChannelsAbove) {
