@@ -202,9 +202,10 @@ TEST(Threads, SilhouetteRunsEqualTestingEveryPixel) {
   }
 }
 
-// A closed, consistently oriented mesh drawn with one winding of faces (`closed`) casts the
-// silhouette every face casts: hull surfaces (exact and midpoint vertices, a coarse hull) in
-// perspective views around and above it and in the thesis's orthographic view.
+// A closed, consistently oriented mesh drawn with one winding of faces (`closed`), or filled
+// from its outline (SilhouetteReprojection with `closed`), casts the silhouette every face casts:
+// hull surfaces (exact and midpoint vertices, a coarse hull) in perspective views around and above
+// it and in the thesis's orthographic view.
 TEST(Threads, ClosedSilhouetteEqualsEveryFace) {
   const SmallScan scan = MakeScan(8);
   VisualHull hull(scan.grid);
@@ -218,16 +219,32 @@ TEST(Threads, ClosedSilhouetteEqualsEveryFace) {
   const std::vector<Mesh> meshes = {hull.ExtractSurface(), hull.ExtractSurface(midpoints),
                                     coarse.ExtractSurface(midpoints)};
   std::vector<View> views = MakeScan(7).views;
-  views.push_back(ThesisView(320, 240, 30.0));
+  for (double angle : {0.0, 30.0, 90.0}) views.push_back(ThesisView(320, 240, angle));
   views.push_back(testing::ViewOf(testing::StationRig(300.0, 70.0, 40.0, 320, 240), 15.0));
+  // Masks to score against: the analytic spheres, shifted ones and the every-face silhouettes
+  // themselves (IoU 1 only if the outline fill gives every pixel).
   for (const Mesh& mesh : meshes) {
     const MeshStats stats = ComputeStats(mesh);
     ASSERT_TRUE(stats.closed && stats.oriented);
+    std::vector<cv::Mat> own;
     for (const View& view : views) {
       const cv::Mat every = RenderSilhouette(mesh, view);
       ASSERT_GT(cv::countNonZero(every), 0);
       EXPECT_EQ(cv::countNonZero(every != RenderSilhouette(mesh, view, /*closed=*/true)), 0);
+      own.push_back(every);
     }
+    const ReprojectionStats outline = SilhouetteReprojection(mesh, views, own, /*closed=*/true);
+    for (std::size_t i = 0; i < views.size(); ++i) EXPECT_EQ(outline.iou[i], 1.0) << i;
+    std::vector<cv::Mat> spheres;
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      cv::Mat shifted = cv::Mat::zeros(own[i].size(), CV_8UC1);
+      own[i](cv::Rect(0, 0, own[i].cols - 3, own[i].rows))
+          .copyTo(shifted(cv::Rect(3, 0, own[i].cols - 3, own[i].rows)));
+      spheres.push_back(shifted);
+    }
+    const ReprojectionStats a = SilhouetteReprojection(mesh, views, spheres, /*closed=*/true);
+    const ReprojectionStats b = SilhouetteReprojection(mesh, views, spheres, /*closed=*/false);
+    EXPECT_EQ(a.iou, b.iou);
   }
 }
 
