@@ -147,7 +147,12 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh,
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector2d hi = -lo;
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    if (!view.Project(mesh.vertices[i].cast<double>(), &projected[i])) return std::nullopt;
+    // View::Project's expression, inlined.
+    const Eigen::Vector3d h =
+        view.pixel_from_object.leftCols<3>() * mesh.vertices[i].cast<double>() +
+        view.pixel_from_object.col(3);
+    if (h.z() <= 0.0) return std::nullopt;
+    projected[i] = h.head<2>() / h.z();
     lo = lo.cwiseMin(projected[i]);
     hi = hi.cwiseMax(projected[i]);
   }
@@ -296,16 +301,16 @@ double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
 }
 
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks, bool closed) {
+                                         const std::vector<cv::Mat>& masks) {
   ReprojectionStats stats;
   // The views on all cores, each IoU in its slot; the sum and the worst in view order.
   stats.iou.resize(views.size());
-  const std::vector<SharedEdge> edges = closed ? SharedEdges(mesh) : std::vector<SharedEdge>();
+  const std::vector<SharedEdge> edges = SharedEdges(mesh);  // empty: not closed
   ParallelFor(0, views.size(), [&](std::size_t i) {
     std::optional<BoxedSilhouette> outline;
     if (!edges.empty()) outline = SilhouetteFromOutline(mesh, edges, views[i]);
     if (!outline) {
-      stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i], closed), masks[i]);
+      stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i], !edges.empty()), masks[i]);
       return;
     }
     // MaskIoU's counts: none of the silhouette lies outside its box.

@@ -37,10 +37,14 @@ struct ReprojectionStats {
   int worst_view = -1;
 };
 
-// RenderSilhouette (with `closed`) + MaskIoU for every view, on all cores. Precondition:
-// masks.size() == views.size(), each mask of its view's size.
+// RenderSilhouette + MaskIoU for every view, on all cores. The silhouette of a closed,
+// consistently oriented mesh (each edge run once in each direction, found here) is filled from
+// its outline instead, the edges between faces of either winding (the same pixels but for pixel
+// centres within rounding of the outline; a few percent of drawing every face), in views that
+// see every vertex in front. Precondition: masks.size() == views.size(), each mask of its view's
+// size.
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks, bool closed = false);
+                                         const std::vector<cv::Mat>& masks);
 
 // Inside test of a solid (true = inside).
 using InsideTest = std::function<bool(const Eigen::Vector3d&)>;

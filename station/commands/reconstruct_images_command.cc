@@ -378,7 +378,9 @@ class ImagesRun {
   }
 
   Expected<void> Measure() {
-    stats_ = rc::ComputeStats(mesh_);
+    // Independent, each on all cores.
+    rc::ParallelInvoke([&] { stats_ = rc::ComputeStats(mesh_); },
+                       [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_); });
     nlohmann::json file_names = nlohmann::json::array();
     for (const std::filesystem::path& f : files_) {
       file_names.push_back(std::filesystem::relative(f, options_.out).string());
@@ -398,8 +400,6 @@ class ImagesRun {
       report_["model"]["rows"] = meridian_model_->row_count;
       report_["model"]["texture_images"] = meridian_model_->mesh.view_texture.images.size();
     }
-    reprojection_ =
-        rc::SilhouetteReprojection(mesh_, views_, masks_, stats_.closed && stats_.oriented);
     nlohmann::json per_view =
         JudgeViews(names_, masks_, reprojection_.iou, problems_, kMinAgreeingIoU, out_);
     for (std::size_t i = 0; i < per_view.size(); ++i) {

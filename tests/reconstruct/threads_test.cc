@@ -221,8 +221,9 @@ TEST(Threads, ClosedSilhouetteEqualsEveryFace) {
   std::vector<View> views = MakeScan(7).views;
   for (double angle : {0.0, 30.0, 90.0}) views.push_back(ThesisView(320, 240, angle));
   views.push_back(testing::ViewOf(testing::StationRig(300.0, 70.0, 40.0, 320, 240), 15.0));
-  // Masks to score against: the analytic spheres, shifted ones and the every-face silhouettes
-  // themselves (IoU 1 only if the outline fill gives every pixel).
+  // Masks to score against: the every-face silhouettes themselves (IoU 1 only if the outline
+  // fill gives every pixel) and shifted by 3 px; an open mesh (a face left out) is drawn face by
+  // face.
   for (const Mesh& mesh : meshes) {
     const MeshStats stats = ComputeStats(mesh);
     ASSERT_TRUE(stats.closed && stats.oriented);
@@ -233,18 +234,25 @@ TEST(Threads, ClosedSilhouetteEqualsEveryFace) {
       EXPECT_EQ(cv::countNonZero(every != RenderSilhouette(mesh, view, /*closed=*/true)), 0);
       own.push_back(every);
     }
-    const ReprojectionStats outline = SilhouetteReprojection(mesh, views, own, /*closed=*/true);
+    const ReprojectionStats outline = SilhouetteReprojection(mesh, views, own);
     for (std::size_t i = 0; i < views.size(); ++i) EXPECT_EQ(outline.iou[i], 1.0) << i;
-    std::vector<cv::Mat> spheres;
+    std::vector<cv::Mat> shifted_masks;
     for (std::size_t i = 0; i < views.size(); ++i) {
       cv::Mat shifted = cv::Mat::zeros(own[i].size(), CV_8UC1);
       own[i](cv::Rect(0, 0, own[i].cols - 3, own[i].rows))
           .copyTo(shifted(cv::Rect(3, 0, own[i].cols - 3, own[i].rows)));
-      spheres.push_back(shifted);
+      shifted_masks.push_back(shifted);
     }
-    const ReprojectionStats a = SilhouetteReprojection(mesh, views, spheres, /*closed=*/true);
-    const ReprojectionStats b = SilhouetteReprojection(mesh, views, spheres, /*closed=*/false);
-    EXPECT_EQ(a.iou, b.iou);
+    const ReprojectionStats a = SilhouetteReprojection(mesh, views, shifted_masks);
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      EXPECT_EQ(a.iou[i], MaskIoU(own[i], shifted_masks[i])) << i;
+    }
+    Mesh open = mesh;
+    open.faces.pop_back();
+    const ReprojectionStats b = SilhouetteReprojection(open, views, shifted_masks);
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      EXPECT_EQ(b.iou[i], MaskIoU(RenderSilhouette(open, views[i]), shifted_masks[i])) << i;
+    }
   }
 }
 
