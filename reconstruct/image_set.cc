@@ -206,15 +206,16 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
     // Background where every channel is at most the threshold (OpenCV's vector loops).
     cv::inRange(image, cv::Scalar::all(0), cv::Scalar::all(options.threshold), mask);
     cv::bitwise_not(mask, mask);
-  }
-  for (int v = 0; v < image.rows && channels != 1 && channels != 3; ++v) {
-    const auto* in = image.ptr<std::uint8_t>(v);
-    auto* out = mask.ptr<std::uint8_t>(v);
-    for (int u = 0; u < image.cols; ++u) {
-      bool object = false;
-      for (int c = 0; c < std::min(channels, 3); ++c)
-        object |= in[u * channels + c] > options.threshold;
-      out[u] = object ? 255 : 0;
+  } else {
+    for (int v = 0; v < image.rows; ++v) {
+      const auto* in = image.ptr<std::uint8_t>(v);
+      auto* out = mask.ptr<std::uint8_t>(v);
+      for (int u = 0; u < image.cols; ++u) {
+        bool object = false;
+        for (int c = 0; c < std::min(channels, 3); ++c)
+          object |= in[u * channels + c] > options.threshold;
+        out[u] = object ? 255 : 0;
+      }
     }
   }
   // The rest on the object's rectangle with a margin of background: the same result as on the
