@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "reconstruct/image_set.h"
 #include "station/commands/reconstruct_images_command.h"
 #include "station/commands/scan_command.h"
 
@@ -200,6 +201,39 @@ TEST_F(ReconstructImages, PhotosAreSegmentedAndTheMasksKeptForAPersonToCheck) {
   std::ofstream(dir_ / "seg.toml") << "[segment]\nmethod = \"graphcut\"\n";
   ASSERT_EQ(Run(options), kExitOk) << err_.str();
   EXPECT_EQ(Report()["segmentation"]["method"], "graphcut");
+}
+
+// The masks are written once, after the consensus; a run that stops before it (here: a
+// cameras file that is not there) still leaves the segmentation's masks and contact sheet for
+// a person to check, and says why it stopped.
+TEST_F(ReconstructImages, ARunStoppedBeforeTheConsensusStillWritesTheMasks) {
+  const cv::Mat mask = BottleMask();
+  for (int k = 0; k < 6; ++k) {
+    cv::Mat photo(mask.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+    photo.setTo(cv::Scalar(40, 190, 120), mask);
+    ASSERT_TRUE(
+        cv::imwrite((dir_ / "images" / ("shot_" + std::to_string(k) + ".png")).string(), photo));
+  }
+  ReconstructImagesOptions options = Options();
+  options.pattern = "shot_{index}.png";
+  options.segment = "threshold";
+  options.cameras = dir_ / "no_such_cameras.txt";
+  ASSERT_EQ(Run(options), kExitFailed);
+  EXPECT_NE(err_.str().find("no_such_cameras.txt"), std::string::npos) << err_.str();
+  for (int k = 0; k < 6; ++k) {
+    const fs::path written = dir_ / "out" / "masks" / ("shot_" + std::to_string(k) + ".png");
+    ASSERT_TRUE(fs::exists(written)) << written;
+    // The threshold's mask (reconstruct/image_set.h), as segmented: no consensus cut it.
+    cv::Mat photo(mask.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+    photo.setTo(cv::Scalar(40, 190, 120), mask);
+    reconstruct::PhotoSegmentation segmentation;
+    segmentation.threshold = options.threshold;
+    EXPECT_EQ(cv::countNonZero(cv::imread(written.string(), cv::IMREAD_GRAYSCALE) !=
+                               reconstruct::SegmentPhoto(photo, segmentation)),
+              0);
+  }
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "contact_sheet.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "report.json"));
 }
 
 TEST_F(ReconstructImages, ImportedProjectionMatricesOfAnySign) {
