@@ -11,8 +11,10 @@
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/silhouette_consensus.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/metrics/metrics.h"
@@ -151,6 +153,26 @@ TEST(Threads, OneThreadAndAllCoresWriteTheSameBytes) {
     EXPECT_GT(bytes.size(), 0u) << name;
     EXPECT_TRUE(bytes == all.at(name)) << name << " differs between 1 thread and all cores";
   }
+}
+
+// The silhouette consensus (one carve per view, the leave-one-out hulls on all cores): the same
+// agreements and cut masks on one thread as on all cores.
+TEST(Threads, ConsensusIsTheSameOnOneThreadAndAllCores) {
+  SmallScan scan = MakeScan(12);
+  cv::rectangle(scan.masks[4], cv::Rect(0, 200, 320, 40), cv::Scalar(255), cv::FILLED);  // a stand
+  const auto run = [&](int threads) {
+    const ThreadLimit limit(threads);
+    return ConsensusOfSilhouettes(scan.masks, scan.views, {-60, -60, 0}, {60, 60, 120});
+  };
+  const Expected<SilhouetteConsensus> one = run(1);
+  const Expected<SilhouetteConsensus> all = run(8);
+  ASSERT_TRUE(one && all);
+  EXPECT_EQ(one->agreement, all->agreement);
+  EXPECT_LT(one->agreement[4], one->agreement[3]);
+  for (std::size_t i = 0; i < scan.masks.size(); ++i) {
+    EXPECT_EQ(cv::countNonZero(one->masks[i] != all->masks[i]), 0) << i;
+  }
+  EXPECT_LT(cv::countNonZero(one->masks[4]), cv::countNonZero(scan.masks[4]));  // the stand cut
 }
 
 TEST(Threads, ThreadLimitBoundsTheLoops) {
