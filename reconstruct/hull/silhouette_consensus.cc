@@ -46,6 +46,8 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   SilhouetteConsensus result;
   result.agreement.resize(masks.size());
   result.masks.resize(masks.size());
+  result.cut_roi.resize(masks.size());
+  result.size.resize(masks.size());
   // The leave-one-out hulls on all cores (reconstruct/parallel.h), each view's results in its
   // slot; the first error in view order is returned.
   // Each view is prepared once for all the hulls it carves.
@@ -84,10 +86,17 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
     cv::dilate(
         others(roi), allowed,
         cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-    result.masks[i] = cv::Mat::zeros(masks[i].size(), CV_8UC1);
-    cv::bitwise_and(masks[i](roi), allowed, result.masks[i](roi));
+    cv::bitwise_and(masks[i](roi), allowed, result.masks[i]);
+    result.cut_roi[i] = roi;
+    result.size[i] = masks[i].size();
   });
   return result;
+}
+
+cv::Mat SilhouetteConsensus::CutMask(std::size_t i) const {
+  cv::Mat mask = cv::Mat::zeros(size[i], CV_8UC1);
+  if (!masks[i].empty()) masks[i].copyTo(mask(cut_roi[i]));
+  return mask;
 }
 
 }  // namespace revolve::reconstruct

@@ -146,6 +146,8 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
   Expected<reconstruct::SilhouetteConsensus> consensus =
       reconstruct::ConsensusOfSilhouettes(usable_masks, usable_views, box_min, box_max);
   if (!consensus) return std::unexpected(consensus.error());
+  // The originals are held once from here (masks): each cut mask replaces its original.
+  usable_masks.clear();
   const double median = Median(consensus->agreement);
   for (std::size_t k = 0; k < usable.size(); ++k) {
     const std::size_t i = usable[k];
@@ -157,7 +159,8 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
           agreement[i], median);
       continue;
     }
-    masks[i] = consensus->masks[k];
+    masks[i] = consensus->CutMask(k);
+    consensus->masks[k].release();
   }
   out << fmt::format("silhouette consensus: median agreement {:.3f} over {} views\n", median,
                      usable.size());

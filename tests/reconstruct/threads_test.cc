@@ -170,7 +170,7 @@ TEST(Threads, ConsensusIsTheSameOnOneThreadAndAllCores) {
   EXPECT_EQ(one->agreement, all->agreement);
   EXPECT_LT(one->agreement[4], one->agreement[3]);
   for (std::size_t i = 0; i < scan.masks.size(); ++i) {
-    EXPECT_EQ(cv::countNonZero(one->masks[i] != all->masks[i]), 0) << i;
+    EXPECT_EQ(cv::countNonZero(one->CutMask(i) != all->CutMask(i)), 0) << i;
   }
   EXPECT_LT(cv::countNonZero(one->masks[4]), cv::countNonZero(scan.masks[4]));  // the stand cut
 }
