@@ -417,33 +417,45 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
     if (std::find(unique.begin(), unique.end(), format) == unique.end()) unique.push_back(format);
   }
   // The texture is encoded once for every format that embeds or references it.
-  std::string png;
   const bool needs_png = mesh.HasTexture() &&
                          std::any_of(unique.begin(), unique.end(),
                                      [](const std::string& f) { return f == "obj" || f == "glb"; });
-  // The files on all cores: those without the texture while it is encoded, then the others.
-  // Each file's list (and its error) is kept in its slot, so the result is in the order asked.
+  // Every file at once, on all cores: the PNG (itself encoded in bands on all cores), then its
+  // file and the .glb that embeds it, while the others are written (the .obj and .mtl too, which
+  // only name it). Each file's list (and its error) is kept in its slot, so the result is in the
+  // order asked.
   std::vector<Expected<std::vector<fs::path>>> files(unique.size());
-  const auto write = [&](std::size_t i) {
-    files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
-                              needs_png ? &png : nullptr);
+  const auto path_of = [&](std::size_t i) {
+    return dir / fmt::format("{}.{}", basename, unique[i]);
   };
-  const auto uses_png = [&](std::size_t i) {
-    return needs_png && (unique[i] == "obj" || unique[i] == "glb");
-  };
-  Expected<std::string> encoded = std::string();
-  ParallelFor(0, unique.size() + 1, [&](std::size_t i) {
-    if (i == unique.size()) {
-      if (needs_png) encoded = internal::EncodePng(mesh.texture);
-    } else if (!uses_png(i)) {
-      write(i);
-    }
-  });
-  if (!encoded) return std::unexpected(encoded.error());
-  png = std::move(*encoded);
-  ParallelFor(0, unique.size(), [&](std::size_t i) {
-    if (uses_png(i)) write(i);
-  });
+  const auto waits_for_png = [&](std::size_t i) { return needs_png && unique[i] == "glb"; };
+  std::string png;
+  Expected<void> png_written;
+  ParallelInvoke(
+      [&] {
+        if (!needs_png) return;
+        Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+        if (!encoded) {
+          png_written = std::unexpected(encoded.error());
+          return;
+        }
+        png = std::move(*encoded);
+        ParallelFor(0, unique.size() + 1, [&](std::size_t i) {
+          if (i == unique.size()) {
+            if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
+              png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
+            }
+          } else if (waits_for_png(i)) {
+            files[i] = WriteModelFile(mesh, path_of(i), unique[i], &png);
+          }
+        });
+      },
+      [&] {
+        ParallelFor(0, unique.size(), [&](std::size_t i) {
+          if (!waits_for_png(i)) files[i] = WriteModelFile(mesh, path_of(i), unique[i], nullptr);
+        });
+      });
+  if (!png_written) return std::unexpected(png_written.error());
   std::vector<fs::path> written;
   for (Expected<std::vector<fs::path>>& file : files) {
     if (!file) return std::unexpected(file.error());

@@ -62,24 +62,6 @@ void Pad4(std::string* bytes, char fill) {
 
 namespace internal {
 
-Expected<std::string> EncodePng(const cv::Mat& bgr) {
-  std::vector<std::uint8_t> bytes;
-  bool ok = false;
-  try {
-    // zlib's fastest level with run-length matching: the atlas is frames' pixels and flat
-    // padding; encoding time matters more than a few percent of size.
-    ok = cv::imencode(
-        ".png", bgr, bytes,
-        {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE});
-  } catch (const cv::Exception& e) {
-    return MakeError(ErrorCode::kInternal, fmt::format("cannot encode the texture: {}", e.what()));
-  }
-  if (!ok) {
-    return MakeError(ErrorCode::kInternal, "cannot encode the texture as PNG");
-  }
-  return std::string(bytes.begin(), bytes.end());
-}
-
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
   std::vector<Eigen::Vector3f> normals(mesh.vertices.size(), Eigen::Vector3f::Zero());
   for (const Eigen::Vector3i& f : mesh.faces) {
@@ -106,16 +88,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
   fs::path png_path = path;
   png_path.replace_extension(".png");
 
-  if (textured) {
-    std::string encoded;
-    if (png == nullptr) {
-      Expected<std::string> bytes = EncodePng(mesh.texture);
-      if (!bytes) {
-        return std::unexpected(bytes.error());
-      }
-      encoded = std::move(*bytes);
-      png = &encoded;
-    }
+  if (textured && png != nullptr) {
     if (Expected<void> written = WriteFileAtomically(png_path, *png); !written) {
       return written;
     }
@@ -442,7 +415,10 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
 }  // namespace internal
 
 Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
-  return internal::WriteObj(mesh, path, nullptr);
+  if (!mesh.HasTexture()) return internal::WriteObj(mesh, path, nullptr);
+  Expected<std::string> png = internal::EncodePng(mesh.texture);
+  if (!png) return std::unexpected(png.error());
+  return internal::WriteObj(mesh, path, &*png);
 }
 
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {

@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture_internal.h"
 
 namespace revolve::reconstruct {
@@ -98,14 +99,23 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   // The few best views of each face and vertex, and per view the faces and vertices it may see.
   const ViewRanking ranking(geometry, images, surface, cos_min);
-  const std::vector<Candidates> face_candidates =
-      options.atlas ? ranking.Rank(static_cast<int>(mesh->faces.size()), surface.snx.data(),
-                                   surface.sny.data(), surface.snz.data())
-                    : std::vector<Candidates>();
-  const VertexClusters clusters = ClusterVertices(mesh->vertices, surface);
-  const PerView<std::int64_t> faces_per_view = ranking.FacesPerView(face_candidates);
-  const PerView<int> vertices_per_view =
-      ranking.VerticesPerView(surface.vertex_normal, options.vertex_colors);
+  // The faces' side and the vertices' side at once (each on all cores where it can be).
+  std::vector<Candidates> face_candidates;
+  PerView<std::int64_t> faces_per_view;
+  VertexClusters clusters;
+  PerView<int> vertices_per_view;
+  ParallelInvoke(
+      [&] {
+        if (options.atlas) {
+          face_candidates = ranking.Rank(static_cast<int>(mesh->faces.size()), surface.snx.data(),
+                                         surface.sny.data(), surface.snz.data());
+        }
+        faces_per_view = ranking.FacesPerView(face_candidates);
+      },
+      [&] {
+        vertices_per_view = ranking.VerticesPerView(surface.vertex_normal, options.vertex_colors);
+      },
+      [&] { clusters = ClusterVertices(mesh->vertices, surface); });
 
   const Sightings seen = SweepViews(SweepInputs{*mesh, surface, geometry, images, ranking, clusters,
                                                 faces_per_view, vertices_per_view, cos_min, max_tan,

@@ -11,10 +11,12 @@
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/parallel.h"
@@ -151,6 +153,49 @@ TEST(Threads, OneThreadAndAllCoresWriteTheSameBytes) {
     EXPECT_GT(bytes.size(), 0u) << name;
     EXPECT_TRUE(bytes == all.at(name)) << name << " differs between 1 thread and all cores";
   }
+}
+
+// The atlas's PNG is encoded in bands of rows on all cores: any image, as many bands as it
+// takes (one row, a band's edge, many), decodes to its own pixels, and one thread makes the same
+// bytes.
+TEST(Threads, PngOfEveryShapeDecodesToItsPixelsInTheSameBytes) {
+  std::mt19937 random(11);
+  std::uniform_int_distribution<int> byte(0, 255);
+  const struct {
+    int width, height, type;
+  } kShapes[] = {{1, 1, CV_8UC3},   {5, 1, CV_8UC3},     {1, 40, CV_8UC3},   {17, 32, CV_8UC3},
+                 {64, 33, CV_8UC3}, {640, 257, CV_8UC3}, {123, 95, CV_8UC1}, {1024, 70, CV_8UC3}};
+  for (const auto& shape : kShapes) {
+    SCOPED_TRACE(::testing::Message() << shape.width << "x" << shape.height);
+    cv::Mat image(shape.height, shape.width, shape.type);
+    // Noise, flat runs and a gradient: every filter case and long runs.
+    for (int v = 0; v < image.rows; ++v) {
+      auto* row = image.ptr<std::uint8_t>(v);
+      for (int i = 0; i < image.cols * image.channels(); ++i) {
+        row[i] = v % 3 == 0   ? static_cast<std::uint8_t>(byte(random))
+                 : v % 3 == 1 ? std::uint8_t{0}
+                              : static_cast<std::uint8_t>(i + v);
+      }
+    }
+    const Expected<std::string> all = internal::EncodePng(image);
+    ASSERT_TRUE(all);
+    Expected<std::string> one = std::string();
+    {
+      const ThreadLimit limit(1);
+      one = internal::EncodePng(image);
+    }
+    ASSERT_TRUE(one);
+    EXPECT_TRUE(*one == *all) << "the PNG differs between 1 thread and all cores";
+    const cv::Mat decoded = cv::imdecode(
+        cv::Mat(1, static_cast<int>(all->size()), CV_8UC1, const_cast<char*>(all->data())),
+        cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(decoded.size(), image.size());
+    ASSERT_EQ(decoded.type(), image.type());
+    EXPECT_EQ(cv::norm(decoded, image, cv::NORM_INF), 0.0);
+  }
+  // Anything but 8-bit grey or BGR is refused, not written wrongly.
+  EXPECT_FALSE(internal::EncodePng(cv::Mat(4, 4, CV_16UC3, cv::Scalar(1))));
+  EXPECT_FALSE(internal::EncodePng(cv::Mat()));
 }
 
 TEST(Threads, ThreadLimitBoundsTheLoops) {
