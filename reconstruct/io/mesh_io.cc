@@ -11,12 +11,13 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <system_error>
+#include <thread>
 
 #include <fmt/format.h>
 
 #include "reconstruct/io/writer_support.h"
 #include "reconstruct/meridian/meridian_vrml.h"
-#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -420,41 +421,47 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
   const bool needs_png = mesh.HasTexture() &&
                          std::any_of(unique.begin(), unique.end(),
                                      [](const std::string& f) { return f == "obj" || f == "glb"; });
-  // Every file at once, on all cores: the PNG (itself encoded in bands on all cores), then its
-  // file and the .glb that embeds it, while the others are written (the .obj and .mtl too, which
-  // only name it). Each file's list (and its error) is kept in its slot, so the result is in the
-  // order asked.
+  // Every file at once. A writer spends much of its time waiting for the disk (direct I/O, the
+  // fsyncs of AtomicFile), so each file gets a thread of its own rather than one of the pool's,
+  // which would leave a core idle while it waits; the PNG is encoded on the pool meanwhile (in
+  // bands, on all cores), then its file and the .glb that embeds it are written (the .obj and
+  // .mtl only name it). Each file's list (and its error) is kept in its slot, so the result is in
+  // the order asked.
   std::vector<Expected<std::vector<fs::path>>> files(unique.size());
-  const auto path_of = [&](std::size_t i) {
-    return dir / fmt::format("{}.{}", basename, unique[i]);
+  const auto write = [&](std::size_t i, const std::string* png) {
+    files[i] =
+        WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i], png);
   };
   const auto waits_for_png = [&](std::size_t i) { return needs_png && unique[i] == "glb"; };
   std::string png;
   Expected<void> png_written;
-  ParallelInvoke(
-      [&] {
-        if (!needs_png) return;
-        Expected<std::string> encoded = internal::EncodePng(mesh.texture);
-        if (!encoded) {
-          png_written = std::unexpected(encoded.error());
-          return;
-        }
+  {
+    std::vector<std::jthread> writers;  // joined when the block ends
+    const auto start = [&writers](auto&& fn) {
+      try {
+        writers.emplace_back(fn);
+      } catch (const std::system_error&) {
+        fn();  // no thread to be had: on this one
+      }
+    };
+    for (std::size_t i = 0; i < unique.size(); ++i) {
+      if (!waits_for_png(i)) start([&write, i] { write(i, nullptr); });
+    }
+    if (needs_png) {
+      Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+      if (encoded) {
         png = std::move(*encoded);
-        ParallelFor(0, unique.size() + 1, [&](std::size_t i) {
-          if (i == unique.size()) {
-            if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
-              png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
-            }
-          } else if (waits_for_png(i)) {
-            files[i] = WriteModelFile(mesh, path_of(i), unique[i], &png);
-          }
-        });
-      },
-      [&] {
-        ParallelFor(0, unique.size(), [&](std::size_t i) {
-          if (!waits_for_png(i)) files[i] = WriteModelFile(mesh, path_of(i), unique[i], nullptr);
-        });
-      });
+        for (std::size_t i = 0; i < unique.size(); ++i) {
+          if (waits_for_png(i)) start([&write, &png, i] { write(i, &png); });
+        }
+        if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
+          png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
+        }
+      } else {
+        png_written = std::unexpected(encoded.error());
+      }
+    }
+  }
   if (!png_written) return std::unexpected(png_written.error());
   std::vector<fs::path> written;
   for (Expected<std::vector<fs::path>>& file : files) {
