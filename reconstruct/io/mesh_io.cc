@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <future>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -372,10 +373,11 @@ bool IsModelFormat(std::string_view format) {
 
 namespace {
 
-// One format's file(s) at `path` (the texture's PNG in `png` for obj and glb, or null): the
-// files written, in the order WriteModel lists them.
+// One format's file(s) at `path` (a .glb of a textured mesh takes the texture's PNG from `png`;
+// an .obj's PNG is written by the caller): the files written, in the order WriteModel lists them.
 Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path& path,
-                                               const std::string& format, const std::string* png) {
+                                               const std::string& format,
+                                               const internal::PngSource& png) {
   Expected<void> result;
   if (format == "ply") {
     result = WritePly(mesh, path);
@@ -389,7 +391,7 @@ Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path&
   } else if (format == "glb") {
     result = internal::WriteGlb(mesh, path, png);
   } else {
-    result = internal::WriteObj(mesh, path, png);
+    result = internal::WriteObj(mesh, path, nullptr);
   }
   if (!result) return std::unexpected(result.error());
   std::vector<fs::path> written = {path};
@@ -423,43 +425,44 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
                                      [](const std::string& f) { return f == "obj" || f == "glb"; });
   // Every file at once. A writer spends much of its time waiting for the disk (direct I/O, the
   // fsyncs of AtomicFile), so each file gets a thread of its own rather than one of the pool's,
-  // which would leave a core idle while it waits; the PNG is encoded on the pool meanwhile (in
-  // bands, on all cores), then its file and the .glb that embeds it are written (the .obj and
-  // .mtl only name it). Each file's list (and its error) is kept in its slot, so the result is in
-  // the order asked.
+  // which would leave a core idle while it waits. The PNG is encoded on the pool meanwhile (in
+  // bands, on all cores), then written here; the .glb lays out the rest of its file first and
+  // waits for it (the .obj and .mtl only name it). Each file's list (and its error) is kept in
+  // its slot, so the result is in the order asked.
   std::vector<Expected<std::vector<fs::path>>> files(unique.size());
-  const auto write = [&](std::size_t i, const std::string* png) {
-    files[i] =
-        WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i], png);
-  };
-  const auto waits_for_png = [&](std::size_t i) { return needs_png && unique[i] == "glb"; };
   std::string png;
   Expected<void> png_written;
+  std::promise<const std::string*> png_promise;
+  const std::shared_future<const std::string*> png_ready = png_promise.get_future().share();
+  const internal::PngSource png_source = [&png_ready] { return png_ready.get(); };
   {
     std::vector<std::jthread> writers;  // joined when the block ends
-    const auto start = [&writers](auto&& fn) {
-      try {
-        writers.emplace_back(fn);
-      } catch (const std::system_error&) {
-        fn();  // no thread to be had: on this one
-      }
-    };
     for (std::size_t i = 0; i < unique.size(); ++i) {
-      if (!waits_for_png(i)) start([&write, i] { write(i, nullptr); });
+      const auto write = [&, i] {
+        files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
+                                  png_source);
+      };
+      try {
+        writers.emplace_back(write);
+      } catch (const std::system_error&) {
+        // No thread to be had: on this one (the PNG's wait then needs it encoded first).
+        if (unique[i] != "glb" || !needs_png) write();
+      }
     }
     if (needs_png) {
       Expected<std::string> encoded = internal::EncodePng(mesh.texture);
       if (encoded) {
         png = std::move(*encoded);
-        for (std::size_t i = 0; i < unique.size(); ++i) {
-          if (waits_for_png(i)) start([&write, &png, i] { write(i, &png); });
-        }
+        png_promise.set_value(&png);
         if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
           png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
         }
       } else {
         png_written = std::unexpected(encoded.error());
+        png_promise.set_value(nullptr);
       }
+    } else {
+      png_promise.set_value(nullptr);
     }
   }
   if (!png_written) return std::unexpected(png_written.error());

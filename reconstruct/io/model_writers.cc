@@ -334,7 +334,7 @@ std::string GlbHead(const std::string& json, std::size_t bin_size) {
 
 }  // namespace
 
-Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
+Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const PngSource& png_source) {
   const bool textured = mesh.HasTexture();
   const bool colors = !textured && mesh.HasColors();
   // The mesh's own normals (TextureMesh's) where it has them: the same values.
@@ -350,16 +350,6 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   const std::size_t n = textured ? source.size() : mesh.vertices.size();
   const std::size_t index_count = 3 * mesh.faces.size();
 
-  std::string encoded;
-  if (textured && png == nullptr) {
-    Expected<std::string> bytes = internal::EncodePng(mesh.texture);
-    if (!bytes) {
-      return std::unexpected(bytes.error());
-    }
-    encoded = std::move(*bytes);
-    png = &encoded;
-  }
-  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
   Eigen::Vector3f hi = -lo;
   auto include = [&lo, &hi](const Eigen::Vector3f& p) {
@@ -373,6 +363,15 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   } else {
     std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
   }
+  const std::string* png = nullptr;
+  if (textured) {
+    png = png_source();
+    if (png == nullptr) {
+      return MakeError(ErrorCode::kInternal,
+                       fmt::format("{}: the texture could not be encoded", path.string()));
+    }
+  }
+  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
   const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, textured, colors);
 
   AtomicFile file(path);
@@ -422,7 +421,13 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
 }
 
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
-  return internal::WriteGlb(mesh, path, nullptr);
+  std::string png;
+  if (mesh.HasTexture()) {
+    Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+    if (!encoded) return std::unexpected(encoded.error());
+    png = std::move(*encoded);
+  }
+  return internal::WriteGlb(mesh, path, [&png] { return &png; });
 }
 
 std::size_t GlbVertexCount(const Mesh& mesh) {
