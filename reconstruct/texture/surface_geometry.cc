@@ -8,19 +8,11 @@ namespace {
 
 constexpr std::size_t kFacesPerTask = 8192;
 
-// Per vertex, the faces around it in increasing order (a face twice when it holds the vertex
-// twice): faces [start[v], start[v + 1]) of `faces`.
-struct VertexFaces {
-  std::vector<int> start;
-  std::vector<int> faces;
-};
-
 VertexFaces FacesOfVertices(const Mesh& mesh) {
-  const int nv = static_cast<int>(mesh.vertices.size());
   const int nf = static_cast<int>(mesh.faces.size());
   VertexFaces out;
   std::vector<int>& start = out.start;
-  start.assign(nv + 1, 0);
+  start.assign(mesh.vertices.size() + 1, 0);
   for (const Eigen::Vector3i& f : mesh.faces) {
     for (int c = 0; c < 3; ++c) ++start[f[c] + 1];
   }
@@ -65,7 +57,7 @@ std::vector<std::array<int, 3>> FaceNeighbours(const Mesh& mesh, const VertexFac
 // edge-neighbours kNormalSmoothingPasses times (each pass reads only the one before: the faces
 // on all cores).
 void SmoothFaceNormals(const Mesh& mesh, Surface* s) {
-  const int nf = static_cast<int>(mesh.faces.size());
+  const std::size_t nf = mesh.faces.size();
   s->snx.resize(nf);
   s->sny.resize(nf);
   s->snz.resize(nf);
@@ -146,7 +138,7 @@ Surface MeasureSurface(Mesh* mesh, bool atlas) {
   const std::vector<Eigen::Vector3f>& vertices = mesh->vertices;
   std::vector<Eigen::Vector3f> face_normal;
   std::vector<float> first_edge;
-  VertexFaces around;
+  VertexFaces& around = s.around;
   ParallelInvoke([&] { MeasureFaces(*mesh, atlas, &face_normal, &first_edge, &s); },
                  [&] { around = FacesOfVertices(*mesh); });
   // The mesh's scale: the mean first edge, summed in face order (one thread: the same sum on
@@ -185,11 +177,12 @@ Surface MeasureSurface(Mesh* mesh, bool atlas) {
   s.mean_edge_mm = static_cast<float>(edge_sum / nf);
   s.centre = 0.5f * (lo + hi);
   s.radius = 0.5f * (hi - lo).norm();
-  if (atlas) {
-    s.neighbours = FaceNeighbours(*mesh, around);
-    SmoothFaceNormals(*mesh, &s);
-  }
   return s;
+}
+
+void MeasureNeighbourhoods(const Mesh& mesh, Surface* surface) {
+  surface->neighbours = FaceNeighbours(mesh, surface->around);
+  SmoothFaceNormals(mesh, surface);
 }
 
 VertexClusters ClusterVertices(const std::vector<Eigen::Vector3f>& vertices,

@@ -20,6 +20,7 @@ using texture_internal::Float4;
 using texture_internal::GroupCharts;
 using texture_internal::kUnseenColor;
 using texture_internal::LabelFaces;
+using texture_internal::MeasureNeighbourhoods;
 using texture_internal::MeasureSurface;
 using texture_internal::PackCharts;
 using texture_internal::Packing;
@@ -89,7 +90,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   if (mesh->faces.empty()) {
     return stats;
   }
-  const Surface surface = MeasureSurface(mesh, options.atlas);
+  Surface surface = MeasureSurface(mesh, options.atlas);
   const float cos_min = static_cast<float>(std::cos(options.max_angle_deg * M_PI / 180.0));
   const float max_tan =
       std::sqrt(std::max(0.0f, 1.0f - cos_min * cos_min)) / std::max(cos_min, 0.05f);
@@ -99,7 +100,8 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   // The few best views of each face and vertex, and per view the faces and vertices it may see.
   const ViewRanking ranking(geometry, images, surface, cos_min);
-  // The faces' side and the vertices' side at once (each on all cores where it can be).
+  // The faces' side (their neighbourhoods and views) and the vertices' side at once, each on all
+  // cores where it can be.
   std::vector<Candidates> face_candidates;
   PerView<std::int64_t> faces_per_view;
   VertexClusters clusters;
@@ -107,6 +109,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   ParallelInvoke(
       [&] {
         if (options.atlas) {
+          MeasureNeighbourhoods(*mesh, &surface);
           face_candidates = ranking.Rank(static_cast<int>(mesh->faces.size()), surface.snx.data(),
                                          surface.sny.data(), surface.snz.data());
         }
