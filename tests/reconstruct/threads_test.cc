@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/marching_cubes.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/io/writer_support.h"
@@ -196,6 +197,40 @@ TEST(Threads, PngOfEveryShapeDecodesToItsPixelsInTheSameBytes) {
   // Anything but 8-bit grey or BGR is refused, not written wrongly.
   EXPECT_FALSE(internal::EncodePng(cv::Mat(4, 4, CV_16UC3, cv::Scalar(1))));
   EXPECT_FALSE(internal::EncodePng(cv::Mat()));
+}
+
+// Marching cubes polygonises slabs of layers on all cores and joins them: any slab height gives
+// the mesh one sweep over every layer gives, vertex numbers and triangle order included.
+TEST(Threads, MarchingCubesInSlabsIsOneSweep) {
+  std::mt19937 random(5);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Eigen::Vector3i dims(37, 29, 41);
+  BitVolume field(dims);
+  // Two overlapping balls, a thin slab through them, and noise: holes, islands, thin walls.
+  for (int k = 0; k < dims.z(); ++k) {
+    for (int j = 0; j < dims.y(); ++j) {
+      for (int i = 0; i < dims.x(); ++i) {
+        const double a = Eigen::Vector3d(i - 14, j - 14, k - 15).norm();
+        const double b = Eigen::Vector3d(i - 24, j - 15, k - 26).norm();
+        const bool inside = a < 11.0 || b < 9.0 || (k == 20 && i > 3) || unit(random) < 0.03;
+        field.Set(i, j, k, inside && unit(random) > 0.02);
+      }
+    }
+  }
+  MarchingCubesOptions options;
+  options.keep_largest_component = false;
+  options.slab_layers = dims.z() + 1;  // one slab: the sweep
+  const Mesh sweep = MarchingCubes(field, Eigen::Vector3d(1, 2, 3), 0.5, {}, options);
+  ASSERT_GT(sweep.faces.size(), 1000u);
+  for (const int slab_layers : {1, 2, 3, 16, 0}) {
+    SCOPED_TRACE(slab_layers);
+    options.slab_layers = slab_layers;
+    const Mesh slabs = MarchingCubes(field, Eigen::Vector3d(1, 2, 3), 0.5, {}, options);
+    ASSERT_EQ(slabs.vertices.size(), sweep.vertices.size());
+    ASSERT_EQ(slabs.faces.size(), sweep.faces.size());
+    EXPECT_TRUE(slabs.vertices == sweep.vertices);
+    EXPECT_TRUE(slabs.faces == sweep.faces);
+  }
 }
 
 TEST(Threads, ThreadLimitBoundsTheLoops) {
