@@ -63,7 +63,7 @@ void FilterRow(const std::uint8_t* row, int width, int channels, const std::uint
                std::uint8_t* rgb, std::uint8_t* out) {
   const int bytes = width * channels;
   if (channels == 3) {
-    for (int x = 0; x < width; ++x) {
+    for (std::ptrdiff_t x = 0; x < width; ++x) {
       rgb[3 * x] = row[3 * x + 2];
       rgb[3 * x + 1] = row[3 * x + 1];
       rgb[3 * x + 2] = row[3 * x];
@@ -137,8 +137,7 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
                      "cannot encode the texture as PNG: it is not an 8-bit BGR or grey image");
   }
   const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * image.channels() + 1;
-  if (row_bytes * kBandRows > std::numeric_limits<uInt>::max() / 2 ||
-      image.rows > std::numeric_limits<std::int32_t>::max()) {
+  if (row_bytes * kBandRows > std::numeric_limits<uInt>::max() / 2) {
     return MakeError(ErrorCode::kInternal,
                      fmt::format("cannot encode the texture as PNG: {}x{} is too large", image.cols,
                                  image.rows));
