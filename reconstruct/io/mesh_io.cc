@@ -430,23 +430,37 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
   // waits for it (the .obj and .mtl only name it). Each file's list (and its error) is kept in
   // its slot, so the result is in the order asked.
   std::vector<Expected<std::vector<fs::path>>> files(unique.size());
+  const auto write = [&](std::size_t i, const internal::PngSource& png_source) {
+    files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
+                              png_source);
+  };
   std::string png;
   Expected<void> png_written;
-  std::promise<const std::string*> png_promise;
-  const std::shared_future<const std::string*> png_ready = png_promise.get_future().share();
-  const internal::PngSource png_source = [&png_ready] { return png_ready.get(); };
+  std::shared_future<const std::string*> png_ready;
+  // Null when the encoding ended without a PNG (an exception destroys the promise before the
+  // writers are joined).
+  const internal::PngSource png_source = [&png_ready]() -> const std::string* {
+    try {
+      return png_ready.get();
+    } catch (const std::future_error&) {
+      return nullptr;
+    }
+  };
   {
-    std::vector<std::jthread> writers;  // joined when the block ends
+    std::vector<std::jthread> writers;  // joined when the block ends, after the promise is gone
+    std::promise<const std::string*> png_promise;
+    png_ready = png_promise.get_future().share();
+    std::vector<std::size_t> after_png;  // those without a thread that wait for the PNG
     for (std::size_t i = 0; i < unique.size(); ++i) {
-      const auto write = [&, i] {
-        files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
-                                  png_source);
-      };
       try {
-        writers.emplace_back(write);
+        writers.emplace_back([&write, &png_source, i] { write(i, png_source); });
       } catch (const std::system_error&) {
-        // No thread to be had: on this one (the PNG's wait then needs it encoded first).
-        if (unique[i] != "glb" || !needs_png) write();
+        // No thread to be had: on this one.
+        if (needs_png && unique[i] == "glb") {
+          after_png.push_back(i);
+        } else {
+          write(i, png_source);
+        }
       }
     }
     if (needs_png) {
@@ -464,6 +478,7 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
     } else {
       png_promise.set_value(nullptr);
     }
+    for (std::size_t i : after_png) write(i, png_source);
   }
   if (!png_written) return std::unexpected(png_written.error());
   std::vector<fs::path> written;
