@@ -2,13 +2,16 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cstring>
 #include <limits>
 #include <numeric>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <Eigen/Geometry>
 
+#include "reconstruct/parallel.h"
 #include "reconstruct/union_find.h"
 
 namespace revolve::reconstruct {
@@ -350,70 +353,76 @@ void PlaceVertices(const std::vector<GridEdge>& cut_edges, const Eigen::Vector3d
 
 }  // namespace
 
-Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double spacing,
-                   const EdgeCrossings& crossings, const MarchingCubesOptions& options) {
-  const CaseTable& table = Table();
-  Mesh mesh;
-  const Eigen::Vector3i& dims = field.dims();
-  if (dims.minCoeff() <= 0 || !field.Any()) {
-    return mesh;
-  }
+namespace {
 
-  const BitVolume padded = Padded(field);
-  const Eigen::Vector3i& n = padded.dims();
+// Layers of cells per task of MarchingCubes: a fixed number, so the slabs (and so the mesh) do
+// not depend on the threads.
+constexpr int kSlabLayers = 16;
 
-  // Vertex ids of the edges around the current layer of cells: x and y edges on the planes
-  // z = pz (parity pz & 1) and z = pz + 1, z edges between them. -1 = not made yet.
-  const std::int64_t plane_size = std::int64_t{n.x()} * n.y();
-  std::array<std::vector<int>, 2> x_edges = {std::vector<int>(plane_size, -1),
-                                             std::vector<int>(plane_size, -1)};
-  std::array<std::vector<int>, 2> y_edges = x_edges;
-  std::vector<int> z_edges(plane_size, -1);
-  // The slots set in each of these planes, so a plane is reset by undoing them rather than by
-  // filling it (most cells of a layer are empty).
-  std::array<std::vector<std::int64_t>, 2> x_set;
-  std::array<std::vector<std::int64_t>, 2> y_set;
+// A triangle corner on an x or y edge of a slab's first plane, which the slab below makes:
+// kForeign - (cell * 2 + axis), resolved once every slab is done.
+constexpr int kForeign = -2;
+
+// Vertex ids of the edges around a layer of cells: x and y edges on the planes z = pz (parity
+// pz & 1) and z = pz + 1, z edges between them; -1 = not made yet. The slots set in each, so a
+// plane is reset by undoing them rather than by filling it (most cells of a layer are empty).
+// One per thread, kept across its slabs.
+struct EdgePlanes {
+  std::array<std::vector<int>, 2> x, y;
+  std::vector<int> z;
+  std::array<std::vector<std::int64_t>, 2> x_set, y_set;
   std::vector<std::int64_t> z_set;
-  auto reset = [](std::vector<int>* plane, std::vector<std::int64_t>* set) {
+
+  explicit EdgePlanes(std::int64_t plane_size)
+      : x{std::vector<int>(plane_size, -1), std::vector<int>(plane_size, -1)},
+        y(x),
+        z(plane_size, -1) {}
+  static void Reset(std::vector<int>* plane, std::vector<std::int64_t>* set) {
     for (std::int64_t cell : *set) (*plane)[cell] = -1;
     set->clear();
-  };
+  }
+};
 
-  // The cut edge of each vertex, in field coordinates; positions are placed after the pass.
-  std::vector<GridEdge> cut_edges;
-  // Room for a surface as large as the field's box (the mesh has about one vertex per unit of
-  // area and two triangles per vertex), so that the arrays are not moved as they grow. Only
-  // the pages written are given memory, so a smaller surface costs only address space.
-  const std::int64_t box_area =
-      2 * (std::int64_t{dims.x()} * dims.y() + std::int64_t{dims.y()} * dims.z() +
-           std::int64_t{dims.x()} * dims.z());
-  cut_edges.reserve(static_cast<std::size_t>(box_area));
-  mesh.faces.reserve(static_cast<std::size_t>(2 * box_area));
+// What one slab of layers made: its cut edges (its vertices, numbered from 0 in the order made),
+// its triangles (kForeign corners for the edges of its first plane), and the (cell, vertex)
+// pairs of the x and y edges of the plane above its last layer.
+struct Slab {
+  std::vector<GridEdge> edges;
+  std::vector<Eigen::Vector3i> faces;
+  std::array<std::vector<std::pair<std::int64_t, int>>, 2> top;
+};
+
+// The cells of layers [z0, z1) of `padded` (the field with an empty border), as MarchingCubes
+// makes them one layer after another; `planes` is all -1 before and after.
+Slab MarchSlab(const BitVolume& padded, const CaseTable& table, int z0, int z1,
+               EdgePlanes* planes) {
+  Slab out;
+  const Eigen::Vector3i& n = padded.dims();
   // A new vertex on the edge from padded sample (x, y, z) one step along `axis`.
   auto make_vertex = [&](int x, int y, int z, int axis) {
     // In field coordinates (padded - 1) the edge runs from (x, y, z) - 1 one step along `axis`
     // (u); `in` is 1 when its second end, not its first, is the inside sample.
     const int ux = axis == 0 ? 1 : 0, uy = axis == 1 ? 1 : 0, uz = axis == 2 ? 1 : 0;
     const int in = padded.Get(x, y, z) ? 0 : 1;
-    const int out = 1 - in;
-    GridEdge& edge = cut_edges.emplace_back();
+    const int out_end = 1 - in;
+    GridEdge& edge = out.edges.emplace_back();
     edge.inside = Eigen::Vector3i(x - 1 + in * ux, y - 1 + in * uy, z - 1 + in * uz);
-    edge.outside = Eigen::Vector3i(x - 1 + out * ux, y - 1 + out * uy, z - 1 + out * uz);
-    return static_cast<int>(cut_edges.size() - 1);
+    edge.outside =
+        Eigen::Vector3i(x - 1 + out_end * ux, y - 1 + out_end * uy, z - 1 + out_end * uz);
+    return static_cast<int>(out.edges.size() - 1);
   };
-
   const int words = padded.words_per_row();
   const int last_cell = n.x() - 2;  // cells px in [0, n.x() - 1)
-  for (int pz = 0; pz + 1 < n.z(); ++pz) {
-    std::vector<int>& x_lo = x_edges[pz & 1];
-    std::vector<int>& y_lo = y_edges[pz & 1];
-    std::vector<int>& x_hi = x_edges[(pz + 1) & 1];
-    std::vector<int>& y_hi = y_edges[(pz + 1) & 1];
-    std::vector<std::int64_t>& x_hi_set = x_set[(pz + 1) & 1];
-    std::vector<std::int64_t>& y_hi_set = y_set[(pz + 1) & 1];
-    reset(&x_hi, &x_hi_set);
-    reset(&y_hi, &y_hi_set);
-    reset(&z_edges, &z_set);
+  for (int pz = z0; pz < z1; ++pz) {
+    std::vector<int>& x_lo = planes->x[pz & 1];
+    std::vector<int>& y_lo = planes->y[pz & 1];
+    std::vector<int>& x_hi = planes->x[(pz + 1) & 1];
+    std::vector<int>& y_hi = planes->y[(pz + 1) & 1];
+    EdgePlanes::Reset(&x_hi, &planes->x_set[(pz + 1) & 1]);
+    EdgePlanes::Reset(&y_hi, &planes->y_set[(pz + 1) & 1]);
+    EdgePlanes::Reset(&planes->z, &planes->z_set);
+    // The edges of plane z0 are the slab below's (but the field's first plane's).
+    const bool lo_foreign = pz == z0 && z0 > 0;
     for (int py = 0; py + 1 < n.y(); ++py) {
       const std::uint64_t* rows[4] = {padded.Row(py, pz), padded.Row(py + 1, pz),
                                       padded.Row(py, pz + 1), padded.Row(py + 1, pz + 1)};
@@ -446,7 +455,7 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
           std::fill(std::begin(local), std::end(local), -1);
           // The vertex of the cell's edge e (made on first use).
           auto vertex = [&](int e) {
-            if (local[e] >= 0) return local[e];
+            if (local[e] != -1) return local[e];
             const CubeEdge& edge = kEdges[e];
             const int c = edge.lower_corner;
             const int x = px + (c & 1);
@@ -455,17 +464,19 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
             const std::int64_t cell = std::int64_t{y} * n.x() + x;
             int* slot = nullptr;
             std::vector<std::int64_t>* set = nullptr;
+            const bool hi = (c >> 2) & 1;
             if (edge.axis == 2) {
-              slot = &z_edges[cell];
-              set = &z_set;
+              slot = &planes->z[cell];
+              set = &planes->z_set;
             } else {
-              const bool hi = (c >> 2) & 1;
               const int parity = (pz + (hi ? 1 : 0)) & 1;
               slot = edge.axis == 0 ? &(hi ? x_hi : x_lo)[cell] : &(hi ? y_hi : y_lo)[cell];
-              set = edge.axis == 0 ? &x_set[parity] : &y_set[parity];
+              set = edge.axis == 0 ? &planes->x_set[parity] : &planes->y_set[parity];
             }
-            if (*slot < 0) {
-              *slot = make_vertex(x, y, z, edge.axis);
+            if (*slot == -1) {
+              *slot = lo_foreign && !hi && edge.axis != 2
+                          ? kForeign - static_cast<int>(cell * 2 + edge.axis)
+                          : make_vertex(x, y, z, edge.axis);
               set->push_back(cell);
             }
             local[e] = *slot;
@@ -476,12 +487,110 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
             const int a = vertex(tris[t]);
             const int b = vertex(tris[t + 1]);
             const int c = vertex(tris[t + 2]);
-            mesh.faces.emplace_back(a, b, c);
+            out.faces.emplace_back(a, b, c);
           }
         }
       }
     }
   }
+  // The plane above the last layer, for the slab above; then every plane back to -1.
+  for (int axis = 0; axis < 2; ++axis) {
+    const std::vector<int>& plane = axis == 0 ? planes->x[z1 & 1] : planes->y[z1 & 1];
+    const std::vector<std::int64_t>& set =
+        axis == 0 ? planes->x_set[z1 & 1] : planes->y_set[z1 & 1];
+    for (std::int64_t cell : set) out.top[axis].emplace_back(cell, plane[cell]);
+  }
+  for (int parity = 0; parity < 2; ++parity) {
+    EdgePlanes::Reset(&planes->x[parity], &planes->x_set[parity]);
+    EdgePlanes::Reset(&planes->y[parity], &planes->y_set[parity]);
+  }
+  EdgePlanes::Reset(&planes->z, &planes->z_set);
+  return out;
+}
+
+// Slab s's triangles with their vertices numbered in the whole mesh (slab s's first vertex is
+// vertex_base[s]) at `faces`; false when a corner of its first plane is not a vertex the slab
+// below made (never, if every cell around a cut edge uses it).
+bool JoinSlab(const std::vector<Slab>& slabs, const std::vector<int>& vertex_base, std::size_t s,
+              EdgePlanes* planes, Eigen::Vector3i* faces) {
+  const Slab& slab = slabs[s];
+  // The slab below's top plane, as lookups (planes->x[0] and y[0], all -1 before and after).
+  if (s > 0) {
+    for (int axis = 0; axis < 2; ++axis) {
+      std::vector<int>& plane = axis == 0 ? planes->x[0] : planes->y[0];
+      for (const auto& [cell, id] : slabs[s - 1].top[axis]) plane[cell] = id;
+    }
+  }
+  bool ok = true;
+  for (std::size_t j = 0; j < slab.faces.size(); ++j) {
+    for (int c = 0; c < 3; ++c) {
+      const int id = slab.faces[j][c];
+      if (id >= 0) {
+        faces[j][c] = vertex_base[s] + id;
+        continue;
+      }
+      const int code = kForeign - id;
+      const int below = s > 0 ? (code & 1 ? planes->y[0] : planes->x[0])[code >> 1] : -1;
+      ok = ok && below >= 0;
+      faces[j][c] = s > 0 ? vertex_base[s - 1] + below : 0;
+    }
+  }
+  if (s > 0) {
+    for (int axis = 0; axis < 2; ++axis) {
+      std::vector<int>& plane = axis == 0 ? planes->x[0] : planes->y[0];
+      for (const auto& entry : slabs[s - 1].top[axis]) plane[entry.first] = -1;
+    }
+  }
+  return ok;
+}
+
+}  // namespace
+
+Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double spacing,
+                   const EdgeCrossings& crossings, const MarchingCubesOptions& options) {
+  const CaseTable& table = Table();
+  Mesh mesh;
+  const Eigen::Vector3i& dims = field.dims();
+  if (dims.minCoeff() <= 0 || !field.Any()) {
+    return mesh;
+  }
+  const BitVolume padded = Padded(field);
+  const Eigen::Vector3i& n = padded.dims();
+  const std::int64_t plane_size = std::int64_t{n.x()} * n.y();
+  tbb::enumerable_thread_specific<EdgePlanes> planes(
+      [plane_size] { return EdgePlanes(plane_size); });
+  // The layers in slabs on all cores, each numbering its own vertices; then the slabs joined in
+  // order, which numbers the vertices and lists the triangles exactly as one sweep over every
+  // layer would (a slab's edges are those the sweep makes in its layers, in the same order).
+  const int layers = n.z() - 1;
+  const int slab_layers = options.slab_layers > 0 ? options.slab_layers : kSlabLayers;
+  std::vector<Slab> slabs(static_cast<std::size_t>((layers + slab_layers - 1) / slab_layers));
+  ParallelFor(0, slabs.size(), [&](std::size_t s) {
+    const int z0 = static_cast<int>(s) * slab_layers;
+    slabs[s] = MarchSlab(padded, table, z0, std::min(layers, z0 + slab_layers), &planes.local());
+  });
+  std::vector<int> vertex_base(slabs.size() + 1, 0);
+  std::vector<std::size_t> face_base(slabs.size() + 1, 0);
+  for (std::size_t s = 0; s < slabs.size(); ++s) {
+    vertex_base[s + 1] = vertex_base[s] + static_cast<int>(slabs[s].edges.size());
+    face_base[s + 1] = face_base[s] + slabs[s].faces.size();
+  }
+  mesh.faces.resize(face_base.back());
+  std::vector<GridEdge> cut_edges(static_cast<std::size_t>(vertex_base.back()));
+  std::atomic<bool> joined = true;
+  ParallelFor(0, slabs.size(), [&](std::size_t s) {
+    std::copy(slabs[s].edges.begin(), slabs[s].edges.end(), cut_edges.begin() + vertex_base[s]);
+    if (!JoinSlab(slabs, vertex_base, s, &planes.local(), mesh.faces.data() + face_base[s])) {
+      joined = false;
+    }
+  });
+  if (!joined && slabs.size() > 1) {
+    // Not expected (every cell around a cut edge uses it); one slab is the sweep itself.
+    MarchingCubesOptions one = options;
+    one.slab_layers = layers;
+    return MarchingCubes(field, origin, spacing, crossings, one);
+  }
+  slabs.clear();
   PlaceVertices(cut_edges, origin, spacing, crossings, &mesh);
   if (options.keep_largest_component) {
     KeepLargestComponent(&mesh);

@@ -81,6 +81,9 @@ using EdgeCrossings = std::function<std::vector<double>(const std::vector<GridEd
 struct MarchingCubesOptions {
   // Keep only the connected component with the most triangles (ties: the first found).
   bool keep_largest_component = true;
+  // Layers of cells per task (0: the default, 16): the cells are polygonised in slabs of layers
+  // on all cores and joined in order, so the mesh is the same for any value (tests compare).
+  int slab_layers = 0;
 };
 
 // Polygonises `field`; an empty `crossings` puts every vertex at its edge's midpoint. Empty mesh

@@ -8,15 +8,17 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <future>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <system_error>
+#include <thread>
 
 #include <fmt/format.h>
 
 #include "reconstruct/io/writer_support.h"
 #include "reconstruct/meridian/meridian_vrml.h"
-#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -371,10 +373,11 @@ bool IsModelFormat(std::string_view format) {
 
 namespace {
 
-// One format's file(s) at `path` (the texture's PNG in `png` for obj and glb, or null): the
-// files written, in the order WriteModel lists them.
+// One format's file(s) at `path` (a .glb of a textured mesh takes the texture's PNG from `png`;
+// an .obj's PNG is written by the caller): the files written, in the order WriteModel lists them.
 Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path& path,
-                                               const std::string& format, const std::string* png) {
+                                               const std::string& format,
+                                               const internal::PngSource& png) {
   Expected<void> result;
   if (format == "ply") {
     result = WritePly(mesh, path);
@@ -388,7 +391,7 @@ Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path&
   } else if (format == "glb") {
     result = internal::WriteGlb(mesh, path, png);
   } else {
-    result = internal::WriteObj(mesh, path, png);
+    result = internal::WriteObj(mesh, path, nullptr);
   }
   if (!result) return std::unexpected(result.error());
   std::vector<fs::path> written = {path};
@@ -417,33 +420,67 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
     if (std::find(unique.begin(), unique.end(), format) == unique.end()) unique.push_back(format);
   }
   // The texture is encoded once for every format that embeds or references it.
-  std::string png;
   const bool needs_png = mesh.HasTexture() &&
                          std::any_of(unique.begin(), unique.end(),
                                      [](const std::string& f) { return f == "obj" || f == "glb"; });
-  // The files on all cores: those without the texture while it is encoded, then the others.
-  // Each file's list (and its error) is kept in its slot, so the result is in the order asked.
+  // Every file at once. A writer spends much of its time waiting for the disk (direct I/O, the
+  // fsyncs of AtomicFile), so each file gets a thread of its own rather than one of the pool's,
+  // which would leave a core idle while it waits. The PNG is encoded on the pool meanwhile (in
+  // bands, on all cores), then written here; the .glb lays out the rest of its file first and
+  // waits for it (the .obj and .mtl only name it). Each file's list (and its error) is kept in
+  // its slot, so the result is in the order asked.
   std::vector<Expected<std::vector<fs::path>>> files(unique.size());
-  const auto write = [&](std::size_t i) {
+  const auto write = [&](std::size_t i, const internal::PngSource& png_source) {
     files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
-                              needs_png ? &png : nullptr);
+                              png_source);
   };
-  const auto uses_png = [&](std::size_t i) {
-    return needs_png && (unique[i] == "obj" || unique[i] == "glb");
-  };
-  Expected<std::string> encoded = std::string();
-  ParallelFor(0, unique.size() + 1, [&](std::size_t i) {
-    if (i == unique.size()) {
-      if (needs_png) encoded = internal::EncodePng(mesh.texture);
-    } else if (!uses_png(i)) {
-      write(i);
+  std::string png;
+  Expected<void> png_written;
+  std::shared_future<const std::string*> png_ready;
+  // Null when the encoding ended without a PNG (an exception destroys the promise before the
+  // writers are joined).
+  const internal::PngSource png_source = [&png_ready]() -> const std::string* {
+    try {
+      return png_ready.get();
+    } catch (const std::future_error&) {
+      return nullptr;
     }
-  });
-  if (!encoded) return std::unexpected(encoded.error());
-  png = std::move(*encoded);
-  ParallelFor(0, unique.size(), [&](std::size_t i) {
-    if (uses_png(i)) write(i);
-  });
+  };
+  {
+    std::vector<std::jthread> writers;  // joined when the block ends, after the promise is gone
+    std::promise<const std::string*> png_promise;
+    png_ready = png_promise.get_future().share();
+    std::vector<std::size_t> after_png;  // those without a thread that wait for the PNG
+    for (std::size_t i = 0; i < unique.size(); ++i) {
+      try {
+        writers.emplace_back([&write, &png_source, i] { write(i, png_source); });
+      } catch (const std::system_error&) {
+        // No thread to be had: on this one.
+        if (needs_png && unique[i] == "glb") {
+          after_png.push_back(i);
+        } else {
+          write(i, png_source);
+        }
+      }
+    }
+    if (needs_png) {
+      Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+      if (encoded) {
+        png = std::move(*encoded);
+        png_promise.set_value(&png);
+        if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
+          png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
+        }
+      } else {
+        png_written = std::unexpected(encoded.error());
+        png_promise.set_value(nullptr);
+      }
+    } else {
+      png_promise.set_value(nullptr);
+    }
+    for (std::size_t i : after_png) write(i, png_source);
+  }
+  if (!png_written) return std::unexpected(png_written.error());
   std::vector<fs::path> written;
   for (Expected<std::vector<fs::path>>& file : files) {
     if (!file) return std::unexpected(file.error());

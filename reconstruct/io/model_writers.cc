@@ -62,24 +62,6 @@ void Pad4(std::string* bytes, char fill) {
 
 namespace internal {
 
-Expected<std::string> EncodePng(const cv::Mat& bgr) {
-  std::vector<std::uint8_t> bytes;
-  bool ok = false;
-  try {
-    // zlib's fastest level with run-length matching: the atlas is frames' pixels and flat
-    // padding; encoding time matters more than a few percent of size.
-    ok = cv::imencode(
-        ".png", bgr, bytes,
-        {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE});
-  } catch (const cv::Exception& e) {
-    return MakeError(ErrorCode::kInternal, fmt::format("cannot encode the texture: {}", e.what()));
-  }
-  if (!ok) {
-    return MakeError(ErrorCode::kInternal, "cannot encode the texture as PNG");
-  }
-  return std::string(bytes.begin(), bytes.end());
-}
-
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
   std::vector<Eigen::Vector3f> normals(mesh.vertices.size(), Eigen::Vector3f::Zero());
   for (const Eigen::Vector3i& f : mesh.faces) {
@@ -106,16 +88,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
   fs::path png_path = path;
   png_path.replace_extension(".png");
 
-  if (textured) {
-    std::string encoded;
-    if (png == nullptr) {
-      Expected<std::string> bytes = EncodePng(mesh.texture);
-      if (!bytes) {
-        return std::unexpected(bytes.error());
-      }
-      encoded = std::move(*bytes);
-      png = &encoded;
-    }
+  if (textured && png != nullptr) {
     if (Expected<void> written = WriteFileAtomically(png_path, *png); !written) {
       return written;
     }
@@ -361,7 +334,7 @@ std::string GlbHead(const std::string& json, std::size_t bin_size) {
 
 }  // namespace
 
-Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::string* png) {
+Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const PngSource& png_source) {
   const bool textured = mesh.HasTexture();
   const bool colors = !textured && mesh.HasColors();
   // The mesh's own normals (TextureMesh's) where it has them: the same values.
@@ -377,16 +350,6 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   const std::size_t n = textured ? source.size() : mesh.vertices.size();
   const std::size_t index_count = 3 * mesh.faces.size();
 
-  std::string encoded;
-  if (textured && png == nullptr) {
-    Expected<std::string> bytes = internal::EncodePng(mesh.texture);
-    if (!bytes) {
-      return std::unexpected(bytes.error());
-    }
-    encoded = std::move(*bytes);
-    png = &encoded;
-  }
-  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
   Eigen::Vector3f hi = -lo;
   auto include = [&lo, &hi](const Eigen::Vector3f& p) {
@@ -400,6 +363,15 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
   } else {
     std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
   }
+  const std::string* png = nullptr;
+  if (textured) {
+    png = png_source();
+    if (png == nullptr) {
+      return MakeError(ErrorCode::kInternal,
+                       fmt::format("{}: the texture could not be encoded", path.string()));
+    }
+  }
+  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
   const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, textured, colors);
 
   AtomicFile file(path);
@@ -442,11 +414,20 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const std::strin
 }  // namespace internal
 
 Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
-  return internal::WriteObj(mesh, path, nullptr);
+  if (!mesh.HasTexture()) return internal::WriteObj(mesh, path, nullptr);
+  Expected<std::string> png = internal::EncodePng(mesh.texture);
+  if (!png) return std::unexpected(png.error());
+  return internal::WriteObj(mesh, path, &*png);
 }
 
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
-  return internal::WriteGlb(mesh, path, nullptr);
+  std::string png;
+  if (mesh.HasTexture()) {
+    Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+    if (!encoded) return std::unexpected(encoded.error());
+    png = std::move(*encoded);
+  }
+  return internal::WriteGlb(mesh, path, [&png] { return &png; });
 }
 
 std::size_t GlbVertexCount(const Mesh& mesh) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -64,14 +65,22 @@ class IndexTexts {
   std::vector<std::uint64_t> words_;  // WordText; empty when a text would not fit
 };
 
-// The texture as PNG bytes (fast compression). Errors: internal when OpenCV cannot encode it.
-Expected<std::string> EncodePng(const cv::Mat& bgr);
+// An 8-bit BGR (or grey) image as PNG bytes (RGB or grey, fast compression), encoded on every
+// core in bands of rows; the bytes do not depend on the number of threads (png_encode.cc).
+// Errors: internal for another kind of image or when zlib fails.
+Expected<std::string> EncodePng(const cv::Mat& image);
 
-// WriteObj / WriteGlb with the texture already encoded (`png`: null to encode it here).
+// WriteObj with the texture already encoded: `png` is written beside it first; null when the
+// caller writes the PNG (the .mtl names it all the same).
 Expected<void> WriteObj(const Mesh& mesh, const std::filesystem::path& path,
                         const std::string* png);
-Expected<void> WriteGlb(const Mesh& mesh, const std::filesystem::path& path,
-                        const std::string* png);
+// The texture's PNG for WriteGlb: called at most once, when a textured mesh's file is laid out
+// up to the image, so the PNG may still be being encoded elsewhere (it may wait for it); null
+// when it could not be encoded.
+using PngSource = std::function<const std::string*()>;
+// WriteGlb with the texture's PNG from `png` (unused without a texture). Error: internal when
+// `png` gives null.
+Expected<void> WriteGlb(const Mesh& mesh, const std::filesystem::path& path, const PngSource& png);
 
 // Unit normal of each vertex: the area-weighted sum of its faces' normals; +z where that is zero.
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh);

@@ -4,11 +4,16 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include <tbb/enumerable_thread_specific.h>
+
+#include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture_internal.h"
 #include "reconstruct/union_find.h"
 
 namespace revolve::reconstruct::texture_internal {
 namespace {
+
+constexpr std::size_t kFacesPerTask = 8192;
 
 // Shelf packing of `sizes` (w, h) into a strip `width` wide; returns the height used, or -1
 // when a rectangle is wider than the strip.
@@ -42,38 +47,43 @@ std::vector<int> LabelFaces(const std::vector<float>& face_cos,
   const int nf = static_cast<int>(face_candidates.size());
   // The best visible candidate.
   std::vector<int> label(nf, -1);
-  for (int i = 0; i < nf; ++i) {
-    float best = -2.0f;
-    for (int s = 0; s < kCandidates; ++s) {
-      const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
-      if (c > best) {
-        best = c;
-        label[i] = face_candidates[i].view[s];
+  ParallelChunks(0, nf, kFacesPerTask, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) {
+      float best = -2.0f;
+      for (int s = 0; s < kCandidates; ++s) {
+        const float c = face_cos[i * kCandidates + s];
+        if (c > best) {
+          best = c;
+          label[i] = face_candidates[i].view[s];
+        }
       }
     }
-  }
+  });
   // Iterated conditional modes: each face takes the visible candidate maximising its cosine plus
   // kNeighbourBonus per edge-neighbour with the same view, so the small islands and ragged
-  // borders that nearly equal views leave behind merge into their surroundings.
+  // borders that nearly equal views leave behind merge into their surroundings. Each pass reads
+  // only the labels of the one before: the faces on all cores.
   std::vector<int> next(nf);
   for (int pass = 0; pass < kSmoothingPasses; ++pass) {
-    for (int i = 0; i < nf; ++i) {
-      next[i] = label[i];
-      float best = -std::numeric_limits<float>::infinity();
-      for (int s = 0; s < kCandidates; ++s) {
-        const float c = face_cos[static_cast<std::size_t>(i) * kCandidates + s];
-        if (c <= -2.0f) continue;
-        const int view = face_candidates[i].view[s];
-        float score = c;
-        for (int nb : neighbours[i]) {
-          if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
-        }
-        if (score > best) {
-          best = score;
-          next[i] = view;
+    ParallelChunks(0, nf, kFacesPerTask, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        next[i] = label[i];
+        float best = -std::numeric_limits<float>::infinity();
+        for (int s = 0; s < kCandidates; ++s) {
+          const float c = face_cos[i * kCandidates + s];
+          if (c <= -2.0f) continue;
+          const int view = face_candidates[i].view[s];
+          float score = c;
+          for (int nb : neighbours[i]) {
+            if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
+          }
+          if (score > best) {
+            best = score;
+            next[i] = view;
+          }
         }
       }
-    }
+    });
     label.swap(next);
   }
   return label;
@@ -118,7 +128,7 @@ Charts GroupCharts(const std::vector<int>& label,
 std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
                              const std::vector<ViewGeometry>& geometry) {
   std::vector<Rect> source(charts.count);
-  for (int c = 0; c < charts.count; ++c) {
+  ParallelFor(0, charts.count, [&](std::size_t c) {
     const ViewGeometry& g = geometry[charts.view[c]];
     float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
     for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
@@ -140,7 +150,7 @@ std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
     r.w = x1 - r.x + 1;
     r.h = y1 - r.y + 1;
     source[c] = r;
-  }
+  });
   return source;
 }
 
@@ -182,7 +192,8 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
   cv::Mat atlas(packing.height, packing.width, CV_8UC3, cv::Scalar(0, 0, 0));
   atlas(cv::Rect(placed[charts.count].x, placed[charts.count].y, kUnseenPatch, kUnseenPatch))
       .setTo(cv::Scalar(kUnseenColor[2], kUnseenColor[1], kUnseenColor[0]));
-  for (int c = 0; c < charts.count; ++c) {
+  // Each chart's own rectangle: on all cores.
+  ParallelFor(0, charts.count, [&](std::size_t c) {
     const Rect& s = source[c];
     const Rect& d = placed[c];
     const cv::Mat from = images[charts.view[c]](cv::Rect(s.x, s.y, s.w, s.h));
@@ -192,7 +203,7 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
     } else {
       cv::resize(from, to, to.size(), 0, 0, cv::INTER_AREA);
     }
-  }
+  });
   return atlas;
 }
 
@@ -201,25 +212,55 @@ void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Pack
   const int nv = static_cast<int>(mesh->vertices.size());
   const int nf = static_cast<int>(mesh->faces.size());
   const std::vector<Rect>& placed = packing.placed;
-  std::vector<Eigen::Vector2f> uvs;
-  std::vector<Eigen::Vector3i> uv_faces(nf);
-  uvs.reserve(nv + nv / 4);
   const float inv_w = 1.0f / packing.width;
   const float inv_h = 1.0f / packing.height;
-  std::vector<int> uv_of(nv, -1);
-  std::vector<int> chart_stamp(nv, -1);
-  for (int c = 0; c < charts.count; ++c) {
+  // The charts on all cores. One uv per (chart, vertex), chart after chart, each chart's in the
+  // order its faces first reach them: first each chart counts its vertices, then each writes its
+  // uvs from its place in that order (the same array on any number of cores). A thread marks the
+  // vertices its chart has reached with the chart's number (and, writing, its uv's index).
+  struct Marks {
+    std::vector<int> chart, uv;
+  };
+  tbb::enumerable_thread_specific<Marks> marks([nv] {
+    return Marks{std::vector<int>(nv, -1), {}};
+  });
+  std::vector<int> uv_start(charts.count + 1, 0);
+  ParallelFor(0, charts.count, [&](std::size_t c) {
+    std::vector<int>& stamp = marks.local().chart;
+    int count = 0;
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh->faces[charts.faces[k]][corner];
+        if (stamp[vi] != static_cast<int>(c)) {
+          stamp[vi] = static_cast<int>(c);
+          ++count;
+        }
+      }
+    }
+    uv_start[c + 1] = count;
+  });
+  std::partial_sum(uv_start.begin(), uv_start.end(), uv_start.begin());
+  const int unseen = charts.count;
+  const bool has_unseen = charts.start[unseen + 1] > charts.start[unseen];
+  std::vector<Eigen::Vector2f> uvs(uv_start.back() + (has_unseen ? 1 : 0));
+  std::vector<Eigen::Vector3i> uv_faces(nf);
+  ParallelFor(0, charts.count, [&](std::size_t c) {
+    Marks& local = marks.local();
+    // The second pass marks with -2 - c: never a mark of the first.
+    const int mark = -2 - static_cast<int>(c);
+    local.uv.resize(nv);
     const ViewGeometry& g = geometry[charts.view[c]];
     const Rect& s = source[c];
     const Rect& d = placed[c];
     const float sx = static_cast<float>(d.w) / s.w;
     const float sy = static_cast<float>(d.h) / s.h;
+    int next = uv_start[c];
     for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
       const int fi = charts.faces[k];
       for (int corner = 0; corner < 3; ++corner) {
         const int vi = mesh->faces[fi][corner];
-        if (chart_stamp[vi] != c) {
-          chart_stamp[vi] = c;
+        if (local.chart[vi] != mark) {
+          local.chart[vi] = mark;
           float u = 0.0f, v = 0.0f;
           if (!g.Project(mesh->vertices[vi], &u, &v)) {
             u = static_cast<float>(s.x);
@@ -228,18 +269,18 @@ void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Pack
           // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
           const float tx = d.x + (u - s.x + 0.5f) * sx;
           const float ty = d.y + (v - s.y + 0.5f) * sy;
-          uv_of[vi] = static_cast<int>(uvs.size());
-          uvs.emplace_back(std::clamp(tx * inv_w, 0.0f, 1.0f), std::clamp(ty * inv_h, 0.0f, 1.0f));
+          local.uv[vi] = next;
+          uvs[next++] = Eigen::Vector2f(std::clamp(tx * inv_w, 0.0f, 1.0f),
+                                        std::clamp(ty * inv_h, 0.0f, 1.0f));
         }
-        uv_faces[fi][corner] = uv_of[vi];
+        uv_faces[fi][corner] = local.uv[vi];
       }
     }
-  }
-  const int unseen = charts.count;
-  if (charts.start[unseen + 1] > charts.start[unseen]) {
-    const int unseen_uv = static_cast<int>(uvs.size());
-    uvs.emplace_back((placed[unseen].x + 0.5f * kUnseenPatch) * inv_w,
-                     (placed[unseen].y + 0.5f * kUnseenPatch) * inv_h);
+  });
+  if (has_unseen) {
+    const int unseen_uv = uv_start.back();
+    uvs[unseen_uv] = Eigen::Vector2f((placed[unseen].x + 0.5f * kUnseenPatch) * inv_w,
+                                     (placed[unseen].y + 0.5f * kUnseenPatch) * inv_h);
     for (int k = charts.start[unseen]; k < charts.start[unseen + 1]; ++k) {
       uv_faces[charts.faces[k]] = Eigen::Vector3i::Constant(unseen_uv);
     }

@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture_internal.h"
 
 namespace revolve::reconstruct {
@@ -19,6 +20,7 @@ using texture_internal::Float4;
 using texture_internal::GroupCharts;
 using texture_internal::kUnseenColor;
 using texture_internal::LabelFaces;
+using texture_internal::MeasureNeighbourhoods;
 using texture_internal::MeasureSurface;
 using texture_internal::PackCharts;
 using texture_internal::Packing;
@@ -88,7 +90,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   if (mesh->faces.empty()) {
     return stats;
   }
-  const Surface surface = MeasureSurface(mesh, options.atlas);
+  Surface surface = MeasureSurface(mesh, options.atlas);
   const float cos_min = static_cast<float>(std::cos(options.max_angle_deg * M_PI / 180.0));
   const float max_tan =
       std::sqrt(std::max(0.0f, 1.0f - cos_min * cos_min)) / std::max(cos_min, 0.05f);
@@ -98,14 +100,25 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
 
   // The few best views of each face and vertex, and per view the faces and vertices it may see.
   const ViewRanking ranking(geometry, images, surface, cos_min);
-  const std::vector<Candidates> face_candidates =
-      options.atlas ? ranking.Rank(static_cast<int>(mesh->faces.size()), surface.snx.data(),
-                                   surface.sny.data(), surface.snz.data())
-                    : std::vector<Candidates>();
-  const VertexClusters clusters = ClusterVertices(mesh->vertices, surface);
-  const PerView<std::int64_t> faces_per_view = ranking.FacesPerView(face_candidates);
-  const PerView<int> vertices_per_view =
-      ranking.VerticesPerView(surface.vertex_normal, options.vertex_colors);
+  // The faces' side (their neighbourhoods and views) and the vertices' side at once, each on all
+  // cores where it can be.
+  std::vector<Candidates> face_candidates;
+  PerView<std::int64_t> faces_per_view;
+  VertexClusters clusters;
+  PerView<int> vertices_per_view;
+  ParallelInvoke(
+      [&] {
+        if (options.atlas) {
+          MeasureNeighbourhoods(*mesh, &surface);
+          face_candidates = ranking.Rank(static_cast<int>(mesh->faces.size()), surface.snx.data(),
+                                         surface.sny.data(), surface.snz.data());
+        }
+        faces_per_view = ranking.FacesPerView(face_candidates);
+      },
+      [&] {
+        vertices_per_view = ranking.VerticesPerView(surface.vertex_normal, options.vertex_colors);
+      },
+      [&] { clusters = ClusterVertices(mesh->vertices, surface); });
 
   const Sightings seen = SweepViews(SweepInputs{*mesh, surface, geometry, images, ranking, clusters,
                                                 faces_per_view, vertices_per_view, cos_min, max_tan,

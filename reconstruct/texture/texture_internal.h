@@ -114,17 +114,26 @@ inline Eigen::Vector3f SampleBilinear(const cv::Mat& bgr, float u, float v) {
 
 // ---- surface_geometry.cc
 
+// Per vertex, the faces around it in increasing order (a face twice when it holds the vertex
+// twice): faces [start[v], start[v + 1]) of `faces`.
+struct VertexFaces {
+  std::vector<int> start;
+  std::vector<int> faces;
+};
+
 // What the steps need of the mesh's shape.
 struct Surface {
   // Per face, for the atlas only (else empty): unit normals (zero for a face without area),
-  // centroids, normals smoothed over kNormalSmoothingPasses rings (unit, or zero), and the (up to
-  // 3) faces sharing an edge with each (-1: a border edge). Normals are structures of arrays.
+  // centroids, and (MeasureNeighbourhoods) normals smoothed over kNormalSmoothingPasses rings
+  // (unit, or zero) and the (up to 3) faces sharing an edge with each (-1: a border edge).
+  // Normals are structures of arrays.
   std::vector<float> fnx, fny, fnz;
   std::vector<Eigen::Vector3f> centroid;
   std::vector<float> snx, sny, snz;
   std::vector<std::array<int, 3>> neighbours;
-  // Per vertex: the unit area-weighted normal, zero where it vanishes.
+  // Per vertex: the unit area-weighted normal, zero where it vanishes; the faces around it.
   std::vector<Eigen::Vector3f> vertex_normal;
+  VertexFaces around;
   Eigen::Vector3f box_lo, box_hi;  // every vertex's box
   float mean_edge_mm = 0.0f;       // the mean length of the faces' first edges
   // The centre and radius of the box of the faces' first corners.
@@ -132,9 +141,13 @@ struct Surface {
   float radius = 0.0f;
 };
 
-// The Surface of a mesh with at least one face; also sets mesh->normals (Mesh::normals: the
-// vertex normals, +z where they vanish). `atlas`: whether the per-face parts are wanted.
+// The Surface of a mesh with at least one face, but its neighbourhoods; also sets mesh->normals
+// (Mesh::normals: the vertex normals, +z where they vanish). `atlas`: whether the per-face parts
+// are wanted.
 Surface MeasureSurface(Mesh* mesh, bool atlas);
+// Adds the faces' neighbours and smoothed normals to a Surface MeasureSurface made with `atlas`
+// (it writes only those).
+void MeasureNeighbourhoods(const Mesh& mesh, Surface* surface);
 
 // A group of vertices (a cell of a coarse grid over their box), with its box and normal cone.
 struct Cluster {

@@ -1,8 +1,14 @@
 #include <numeric>
 
+#include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture_internal.h"
 
 namespace revolve::reconstruct::texture_internal {
+namespace {
+
+constexpr std::size_t kNormalsPerTask = 8192;
+
+}  // namespace
 
 ViewRanking::ViewRanking(const std::vector<ViewGeometry>& geometry,
                          const std::vector<cv::Mat>& images, const Surface& surface, float cos_min)
@@ -98,7 +104,10 @@ Candidates ViewRanking::Rank(float x, float y, float z) const {
 std::vector<Candidates> ViewRanking::Rank(int count, const float* x, const float* y,
                                           const float* z) const {
   std::vector<Candidates> out(count);
-  for (int i = 0; i < count; ++i) out[i] = Rank(x[i], y[i], z[i]);
+  ParallelChunks(0, static_cast<std::size_t>(count), kNormalsPerTask,
+                 [&](std::size_t lo, std::size_t hi) {
+                   for (std::size_t i = lo; i < hi; ++i) out[i] = Rank(x[i], y[i], z[i]);
+                 });
   return out;
 }
 
@@ -134,9 +143,14 @@ PerView<int> ViewRanking::VerticesPerView(const std::vector<Eigen::Vector3f>& ve
   vertex_start.assign(nviews + 1, 0);
   if (!wanted) return out;
   std::vector<std::array<std::int16_t, kCandidates>> ranked(nv);
+  ParallelChunks(0, static_cast<std::size_t>(nv), kNormalsPerTask,
+                 [&](std::size_t lo, std::size_t hi) {
+                   for (std::size_t vi = lo; vi < hi; ++vi) {
+                     const Eigen::Vector3f& n = vertex_normal[vi];
+                     ranked[vi] = Rank(n.x(), n.y(), n.z()).view;
+                   }
+                 });
   for (int vi = 0; vi < nv; ++vi) {
-    const Eigen::Vector3f& n = vertex_normal[vi];
-    ranked[vi] = Rank(n.x(), n.y(), n.z()).view;
     for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
       ++vertex_start[ranked[vi][slot] + 1];
     }

@@ -17,6 +17,7 @@
 #include "capture/synthetic/scene.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/texture/texture.h"
 #include "tests/reconstruct/sphere_scene.h"
 
@@ -140,6 +141,8 @@ void BM_Stage(benchmark::State& state) {
       benchmark::DoNotOptimize(TextureMesh(&mesh, f.views, f.images));
     } else if (stage == 12) {
       benchmark::DoNotOptimize(hull.ExtractSurface(surface));
+    } else if (stage == 13) {
+      benchmark::DoNotOptimize(internal::EncodePng(textured.texture));
     } else {
       const std::string format = kFormats[(stage - 2) % 5];
       benchmark::DoNotOptimize(WriteModel(stage < 7 ? plain : textured, dir, "m", {format}));
@@ -147,11 +150,12 @@ void BM_Stage(benchmark::State& state) {
   }
   fs::remove_all(dir);
 }
-BENCHMARK(BM_Stage)->Name("Stage")->ArgName("stage")->DenseRange(0, 12)->Unit(
+BENCHMARK(BM_Stage)->Name("Stage")->ArgName("stage")->DenseRange(0, 13)->Unit(
     benchmark::kMillisecond);
 // Stages: 0 vertex colours, 1 colours + atlas, 2-6 write ply/obj/stl/glb/wrl without texture,
 // 7-11 the same with the texture (obj writes the PNG, glb embeds it), 12 the surface (marching
-// cubes and the placement on the edges, the base clipped at the plate).
+// cubes and the placement on the edges, the base clipped at the plate), 13 the atlas's PNG encoded
+// in memory.
 
 }  // namespace
 }  // namespace revolve::reconstruct

@@ -11,12 +11,15 @@
 #include <sstream>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/marching_cubes.h"
 #include "reconstruct/hull/silhouette_consensus.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/parallel.h"
@@ -173,6 +176,83 @@ TEST(Threads, ConsensusIsTheSameOnOneThreadAndAllCores) {
     EXPECT_EQ(cv::countNonZero(one->CutMask(i) != all->CutMask(i)), 0) << i;
   }
   EXPECT_LT(cv::countNonZero(one->masks[4]), cv::countNonZero(scan.masks[4]));  // the stand cut
+}
+
+// The atlas's PNG is encoded in bands of rows on all cores: any image, as many bands as it
+// takes (one row, a band's edge, many), decodes to its own pixels, and one thread makes the same
+// bytes.
+TEST(Threads, PngOfEveryShapeDecodesToItsPixelsInTheSameBytes) {
+  std::mt19937 random(11);
+  std::uniform_int_distribution<int> byte(0, 255);
+  const struct {
+    int width, height, type;
+  } kShapes[] = {{1, 1, CV_8UC3},   {5, 1, CV_8UC3},     {1, 40, CV_8UC3},   {17, 32, CV_8UC3},
+                 {64, 33, CV_8UC3}, {640, 257, CV_8UC3}, {123, 95, CV_8UC1}, {1024, 70, CV_8UC3}};
+  for (const auto& shape : kShapes) {
+    SCOPED_TRACE(::testing::Message() << shape.width << "x" << shape.height);
+    cv::Mat image(shape.height, shape.width, shape.type);
+    // Noise, flat runs and a gradient: every filter case and long runs.
+    for (int v = 0; v < image.rows; ++v) {
+      auto* row = image.ptr<std::uint8_t>(v);
+      for (int i = 0; i < image.cols * image.channels(); ++i) {
+        row[i] = v % 3 == 0   ? static_cast<std::uint8_t>(byte(random))
+                 : v % 3 == 1 ? std::uint8_t{0}
+                              : static_cast<std::uint8_t>(i + v);
+      }
+    }
+    const Expected<std::string> all = internal::EncodePng(image);
+    ASSERT_TRUE(all);
+    Expected<std::string> one = std::string();
+    {
+      const ThreadLimit limit(1);
+      one = internal::EncodePng(image);
+    }
+    ASSERT_TRUE(one);
+    EXPECT_TRUE(*one == *all) << "the PNG differs between 1 thread and all cores";
+    const cv::Mat decoded = cv::imdecode(
+        cv::Mat(1, static_cast<int>(all->size()), CV_8UC1, const_cast<char*>(all->data())),
+        cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(decoded.size(), image.size());
+    ASSERT_EQ(decoded.type(), image.type());
+    EXPECT_EQ(cv::norm(decoded, image, cv::NORM_INF), 0.0);
+  }
+  // Anything but 8-bit grey or BGR is refused, not written wrongly.
+  EXPECT_FALSE(internal::EncodePng(cv::Mat(4, 4, CV_16UC3, cv::Scalar(1))));
+  EXPECT_FALSE(internal::EncodePng(cv::Mat()));
+}
+
+// Marching cubes polygonises slabs of layers on all cores and joins them: any slab height gives
+// the mesh one sweep over every layer gives, vertex numbers and triangle order included.
+TEST(Threads, MarchingCubesInSlabsIsOneSweep) {
+  std::mt19937 random(5);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Eigen::Vector3i dims(37, 29, 41);
+  BitVolume field(dims);
+  // Two overlapping balls, a thin slab through them, and noise: holes, islands, thin walls.
+  for (int k = 0; k < dims.z(); ++k) {
+    for (int j = 0; j < dims.y(); ++j) {
+      for (int i = 0; i < dims.x(); ++i) {
+        const double a = Eigen::Vector3d(i - 14, j - 14, k - 15).norm();
+        const double b = Eigen::Vector3d(i - 24, j - 15, k - 26).norm();
+        const bool inside = a < 11.0 || b < 9.0 || (k == 20 && i > 3) || unit(random) < 0.03;
+        field.Set(i, j, k, inside && unit(random) > 0.02);
+      }
+    }
+  }
+  MarchingCubesOptions options;
+  options.keep_largest_component = false;
+  options.slab_layers = dims.z() + 1;  // one slab: the sweep
+  const Mesh sweep = MarchingCubes(field, Eigen::Vector3d(1, 2, 3), 0.5, {}, options);
+  ASSERT_GT(sweep.faces.size(), 1000u);
+  for (const int slab_layers : {1, 2, 3, 16, 0}) {
+    SCOPED_TRACE(slab_layers);
+    options.slab_layers = slab_layers;
+    const Mesh slabs = MarchingCubes(field, Eigen::Vector3d(1, 2, 3), 0.5, {}, options);
+    ASSERT_EQ(slabs.vertices.size(), sweep.vertices.size());
+    ASSERT_EQ(slabs.faces.size(), sweep.faces.size());
+    EXPECT_TRUE(slabs.vertices == sweep.vertices);
+    EXPECT_TRUE(slabs.faces == sweep.faces);
+  }
 }
 
 TEST(Threads, ThreadLimitBoundsTheLoops) {

@@ -1,0 +1,182 @@
+// The texture atlas as PNG, on every core (writer_support.h's EncodePng).
+//
+// A PNG's pixels are one zlib stream, which one deflate call makes on one thread. Here the rows
+// are cut into bands of a fixed number of rows, as pigz cuts a file: each band is filtered and
+// deflated on its own (a raw deflate stream ended by a sync flush, so it stops on a byte boundary
+// without a final block; the last band finishes the stream), and each becomes one IDAT chunk; the
+// zlib header leads the first and the Adler-32 of all the filtered bytes (combined from the
+// bands') ends the last. The cut depends on the image only, so the bytes are the same whatever
+// the number of threads. zlib's level 1 with run-length matching (Z_RLE) and Paeth filtering of
+// every row: the atlas is frames' pixels and flat black padding, where runs are what deflate
+// finds anyway; this is a little larger than libpng's adaptive filters at the same level and
+// several times faster (docs/performance.md, the eighth pass).
+#include <zlib.h>
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "reconstruct/io/writer_support.h"
+#include "reconstruct/parallel.h"
+
+namespace revolve::reconstruct::internal {
+namespace {
+
+constexpr int kBandRows = 32;
+constexpr int kPaethFilter = 4;
+
+void PutBigEndian32(std::uint32_t value, char* out) {
+  out[0] = static_cast<char>(value >> 24);
+  out[1] = static_cast<char>(value >> 16);
+  out[2] = static_cast<char>(value >> 8);
+  out[3] = static_cast<char>(value);
+}
+
+// zlib's CRC-32 of `bytes` continued from `crc` (with none, crc itself: zlib would return its
+// initial value for a null pointer).
+std::uint32_t Crc(std::uint32_t crc, const char* bytes, std::size_t size) {
+  if (size == 0) return crc;
+  return static_cast<std::uint32_t>(
+      crc32_z(crc, reinterpret_cast<const Bytef*>(bytes), static_cast<z_size_t>(size)));
+}
+
+// A chunk: length, type, data, CRC of type and data.
+void AppendChunk(std::string* png, const char (&type)[5], std::string_view data) {
+  char head[8];
+  PutBigEndian32(static_cast<std::uint32_t>(data.size()), head);
+  std::memcpy(head + 4, type, 4);
+  std::uint32_t crc = Crc(crc32_z(0, nullptr, 0), head + 4, 4);
+  crc = Crc(crc, data.data(), data.size());
+  char tail[4];
+  PutBigEndian32(crc, tail);
+  png->append(head, 8);
+  png->append(data);
+  png->append(tail, 4);
+}
+
+// One row, BGR (or grey) at `row`, as its filter byte and Paeth differences at `out`
+// (1 + bytes); `prior` is the row above as RGB (zeros above the first), `rgb` receives this one.
+void FilterRow(const std::uint8_t* row, int width, int channels, const std::uint8_t* prior,
+               std::uint8_t* rgb, std::uint8_t* out) {
+  const int bytes = width * channels;
+  if (channels == 3) {
+    for (std::ptrdiff_t x = 0; x < width; ++x) {
+      rgb[3 * x] = row[3 * x + 2];
+      rgb[3 * x + 1] = row[3 * x + 1];
+      rgb[3 * x + 2] = row[3 * x];
+    }
+  } else {
+    std::memcpy(rgb, row, static_cast<std::size_t>(bytes));
+  }
+  out[0] = kPaethFilter;
+  ++out;
+  // The first pixel: no left neighbour (a = c = 0), so Paeth predicts b.
+  for (int i = 0; i < channels; ++i) out[i] = static_cast<std::uint8_t>(rgb[i] - prior[i]);
+  for (int i = channels; i < bytes; ++i) {
+    const int a = rgb[i - channels], b = prior[i], c = prior[i - channels];
+    const int pa = std::abs(b - c);          // |p - a| with p = a + b - c
+    const int pb = std::abs(a - c);          // |p - b|
+    const int pc = std::abs(a + b - c - c);  // |p - c|
+    const int predicted = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
+    out[i] = static_cast<std::uint8_t>(rgb[i] - predicted);
+  }
+}
+
+// A band's compressed bytes and the Adler-32 of its filtered bytes.
+struct Band {
+  std::string deflated;
+  std::uint32_t adler = 1;
+  std::size_t filtered_size = 0;
+  bool ok = false;
+};
+
+Band EncodeBand(const cv::Mat& image, int first_row, int rows, bool last) {
+  Band band;
+  const int channels = image.channels();
+  const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * channels;
+  std::vector<std::uint8_t> rgb(2 * row_bytes, 0);
+  std::uint8_t* prior = rgb.data();
+  std::uint8_t* current = rgb.data() + row_bytes;
+  std::vector<std::uint8_t> filtered(static_cast<std::size_t>(rows) * (row_bytes + 1));
+  if (first_row > 0) {
+    // The row above, as RGB: Paeth reads it.
+    std::vector<std::uint8_t> scratch(row_bytes + 1);
+    FilterRow(image.ptr<std::uint8_t>(first_row - 1), image.cols, channels, current, prior,
+              scratch.data());
+  }
+  for (int r = 0; r < rows; ++r) {
+    FilterRow(image.ptr<std::uint8_t>(first_row + r), image.cols, channels, prior, current,
+              filtered.data() + r * (row_bytes + 1));
+    std::swap(prior, current);
+  }
+  band.filtered_size = filtered.size();
+  band.adler = static_cast<std::uint32_t>(
+      adler32_z(adler32_z(0, nullptr, 0), filtered.data(), filtered.size()));
+  z_stream stream{};
+  if (deflateInit2(&stream, 1, Z_DEFLATED, -15, 8, Z_RLE) != Z_OK) return band;
+  band.deflated.resize(deflateBound(&stream, static_cast<uLong>(filtered.size())) + 16);
+  stream.next_in = filtered.data();
+  stream.avail_in = static_cast<uInt>(filtered.size());
+  stream.next_out = reinterpret_cast<Bytef*>(band.deflated.data());
+  stream.avail_out = static_cast<uInt>(band.deflated.size());
+  const int status = deflate(&stream, last ? Z_FINISH : Z_SYNC_FLUSH);
+  band.ok = last ? status == Z_STREAM_END : (status == Z_OK && stream.avail_in == 0);
+  band.deflated.resize(stream.total_out);
+  deflateEnd(&stream);
+  return band;
+}
+
+}  // namespace
+
+Expected<std::string> EncodePng(const cv::Mat& image) {
+  if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1)) {
+    return MakeError(ErrorCode::kInternal,
+                     "cannot encode the texture as PNG: it is not an 8-bit BGR or grey image");
+  }
+  const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * image.channels() + 1;
+  if (row_bytes * kBandRows > std::numeric_limits<uInt>::max() / 2) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("cannot encode the texture as PNG: {}x{} is too large", image.cols,
+                                 image.rows));
+  }
+  const int bands = (image.rows + kBandRows - 1) / kBandRows;
+  std::vector<Band> encoded(static_cast<std::size_t>(bands));
+  ParallelFor(0, encoded.size(), [&](std::size_t b) {
+    const int first = static_cast<int>(b) * kBandRows;
+    encoded[b] = EncodeBand(image, first, std::min(kBandRows, image.rows - first),
+                            static_cast<int>(b) == bands - 1);
+  });
+  std::uint32_t adler = static_cast<std::uint32_t>(adler32_z(0, nullptr, 0));
+  std::size_t size = 8 + 25 + 12;
+  for (const Band& band : encoded) {
+    if (!band.ok) return MakeError(ErrorCode::kInternal, "cannot encode the texture: zlib failed");
+    adler = static_cast<std::uint32_t>(
+        adler32_combine(adler, band.adler, static_cast<z_off_t>(band.filtered_size)));
+    size += band.deflated.size() + 12;
+  }
+  std::string png;
+  png.reserve(size + 6);
+  png.append("\x89PNG\r\n\x1a\n", 8);
+  char header[13];
+  PutBigEndian32(static_cast<std::uint32_t>(image.cols), header);
+  PutBigEndian32(static_cast<std::uint32_t>(image.rows), header + 4);
+  header[8] = 8;                              // bits per channel
+  header[9] = image.channels() == 3 ? 2 : 0;  // truecolour or grey
+  header[10] = header[11] = header[12] = 0;   // deflate, adaptive filtering, no interlace
+  AppendChunk(&png, "IHDR", std::string_view(header, sizeof(header)));
+  // zlib's header: deflate with a 32 KiB window, level "fastest" (FCHECK makes it a multiple of
+  // 31).
+  constexpr std::array<char, 2> kZlibHeader = {0x78, 0x01};
+  encoded.front().deflated.insert(0, kZlibHeader.data(), kZlibHeader.size());
+  char trailer[4];
+  PutBigEndian32(adler, trailer);
+  encoded.back().deflated.append(trailer, 4);
+  for (const Band& band : encoded) AppendChunk(&png, "IDAT", band.deflated);
+  AppendChunk(&png, "IEND", {});
+  return png;
+}
+
+}  // namespace revolve::reconstruct::internal
