@@ -11,6 +11,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,9 @@ struct SetCase {
   std::string object;
   cv::Scalar stand_bgr = cv::Scalar(46, 42, 44);  // a post under the object (not kBlackWithShadows)
 };
+
+// The case's name, not its bytes, in test listings.
+void PrintTo(const SetCase& set, std::ostream* out) { *out << set.name << " " << set.object; }
 
 // A set on disk: view_NN.png and cameras.txt in `dir`; the true masks and views returned.
 struct WrittenSet {
