@@ -161,8 +161,16 @@ cv::Mat ConnectedTo(const cv::Mat& above, const cv::Mat& seeds) {
 // The object's body: the largest 8-connected component of `mask` (CV_8UC1) opened by a disc of
 // half its greatest depth (the frame's edge does not count as outline). What a stand's post or
 // foot adds to it is thinner than the object it holds and is not body; an object that crosses
-// the frame's edge is body up to the edge. Empty mask when `mask` is.
-cv::Mat Body(const cv::Mat& mask) {
+// the frame's edge is body up to the edge. Found on a copy of at most 320 px a side (the body's
+// outline is a few pixels coarse). Empty mask when `mask` is.
+cv::Mat Body(const cv::Mat& full) {
+  constexpr int kMaxSidePx = 320;
+  const int side = std::max(full.cols, full.rows);
+  cv::Mat mask = full;
+  if (side > kMaxSidePx) {
+    const double scale = double(kMaxSidePx) / side;
+    cv::resize(full, mask, cv::Size(), scale, scale, cv::INTER_NEAREST);
+  }
   cv::Mat components, stats, centroids;
   const int count = cv::connectedComponentsWithStats(mask, components, stats, centroids, 8, CV_32S);
   int largest = 0;
@@ -172,7 +180,7 @@ cv::Mat Body(const cv::Mat& mask) {
       largest = i;
     }
   }
-  if (largest == 0) return cv::Mat(mask.size(), CV_8UC1, cv::Scalar(0));
+  if (largest == 0) return cv::Mat(full.size(), CV_8UC1, cv::Scalar(0));
   const cv::Mat component = components == largest;
   cv::Mat depth;
   cv::distanceTransform(component, depth, cv::DIST_L2, 3);
@@ -181,7 +189,11 @@ cv::Mat Body(const cv::Mat& mask) {
   const double radius = 0.5 * deepest;
   cv::Mat from_core;
   cv::distanceTransform(depth <= radius, from_core, cv::DIST_L2, 3);
-  return component & (from_core <= radius);
+  cv::Mat body = component & (from_core <= radius);
+  if (body.size() == full.size()) return body;
+  cv::Mat up;
+  cv::resize(body, up, full.size(), 0.0, 0.0, cv::INTER_NEAREST);
+  return up;
 }
 
 double ProbableLevel(const ScoreLevels& levels) {
