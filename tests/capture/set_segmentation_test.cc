@@ -223,10 +223,11 @@ TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
 // The object over black (level 4, noise sigma 3), shifted so it crosses the frame's top edge (a
 // tall vase cropped at the top) or its bottom edge (a light object standing on the frame's
 // bottom): its own colours are then on the frame's edge, above the noise, and must still be object.
+// `shaded`: the object's lower third in deep shadow (15 % of its brightness).
 enum class Crossing { kTop, kBottom };
 
-Frame CrossingTheEdge(const std::string& object, double albedo, Crossing crossing,
-                      double angle_deg) {
+Frame CrossingTheEdge(const std::string& object, double albedo, Crossing crossing, double angle_deg,
+                      bool shaded = false) {
   auto camera = Camera(object, albedo);
   if (!camera) return {};
   const RenderOutput render = camera->RenderWithTruth(angle_deg, 1);
@@ -242,6 +243,7 @@ Frame CrossingTheEdge(const std::string& object, double albedo, Crossing crossin
   cv::warpAffine(render.image, moved, shift, render.image.size(), cv::INTER_NEAREST);
   frame.image = cv::Mat(render.image.size(), CV_8UC3, cv::Scalar(4, 4, 4));
   moved.copyTo(frame.image, frame.truth);
+  if (shaded) test_support::ShadeLowerThird(frame.image, frame.truth, 0.15);
   frame.image = test_support::WithNoise(frame.image, 3.0, 9);
   return frame;
 }
@@ -270,6 +272,24 @@ TEST(ObjectTouchingTheFrameEdge, GraphCutAndAutoKeepItOverBlack) {
     const double graphcut = SegmentIoU(frame, "graphcut");
     const double automatic = SegmentIoU(frame, "auto");
     std::printf("%-32s IoU graphcut %.4f auto %.4f\n", c.name.c_str(), graphcut, automatic);
+    EXPECT_GE(graphcut, 0.97) << c.name;
+    EXPECT_GE(automatic, 0.97) << c.name;
+  }
+}
+
+// Known failure, not fixed yet: the same objects with their lower third in deep shadow (15 %)
+// give graphcut 0.70 (vase cropped at the top), 0.999 (cylinder), 0.50 (light vase on the bottom
+// edge), 0.44 (light cone); main before the body rule: 0.60, 0.84, 0.50, 0.44. Neither learning
+// the edge colours outside the body above the noise nor sparing the brought-in pixels on the
+// outline from "backdrop for sure" changed these, so the cut happens elsewhere (to find).
+TEST(ObjectTouchingTheFrameEdge, DISABLED_GraphCutAndAutoKeepItsDeepShadowOverBlack) {
+  for (const CrossingCase& c : CrossingCases()) {
+    const Frame frame = CrossingTheEdge(c.object, c.albedo, c.crossing, 30.0, true);
+    ASSERT_FALSE(frame.image.empty());
+    const double graphcut = SegmentIoU(frame, "graphcut");
+    const double automatic = SegmentIoU(frame, "auto");
+    std::printf("shadowed %-32s IoU graphcut %.4f auto %.4f\n", c.name.c_str(), graphcut,
+                automatic);
     EXPECT_GE(graphcut, 0.97) << c.name;
     EXPECT_GE(automatic, 0.97) << c.name;
   }
