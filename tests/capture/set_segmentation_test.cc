@@ -220,6 +220,109 @@ TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
   EXPECT_GE(sum / frames.size(), 0.97);
 }
 
+// The object over black (level 4, noise sigma 3), shifted so it crosses the frame's top edge (a
+// tall vase cropped at the top) or its bottom edge (a light object standing on the frame's
+// bottom): its own colours are then on the frame's edge, above the noise, and must still be object.
+// `shaded`: the object's lower third in deep shadow (15 % of its brightness).
+enum class Crossing { kTop, kBottom };
+
+Frame CrossingTheEdge(const std::string& object, double albedo, Crossing crossing, double angle_deg,
+                      bool shaded = false) {
+  auto camera = Camera(object, albedo);
+  if (!camera) return {};
+  const RenderOutput render = camera->RenderWithTruth(angle_deg, 1);
+  const cv::Rect box = cv::boundingRect(render.true_mask);
+  // A quarter of the object's height off the frame.
+  const double dy = crossing == Crossing::kTop
+                        ? -(box.y + box.height / 4.0)
+                        : render.image.rows - (box.y + box.height) + box.height / 4.0;
+  const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, 0, 0, 1, dy);
+  Frame frame;
+  cv::warpAffine(render.true_mask, frame.truth, shift, render.image.size(), cv::INTER_NEAREST);
+  cv::Mat moved;
+  cv::warpAffine(render.image, moved, shift, render.image.size(), cv::INTER_NEAREST);
+  frame.image = cv::Mat(render.image.size(), CV_8UC3, cv::Scalar(4, 4, 4));
+  moved.copyTo(frame.image, frame.truth);
+  if (shaded) test_support::ShadeLowerThird(frame.image, frame.truth, 0.15);
+  frame.image = test_support::WithNoise(frame.image, 3.0, 9);
+  return frame;
+}
+
+struct CrossingCase {
+  std::string object;
+  double albedo;
+  Crossing crossing;
+  std::string name;
+};
+
+const std::vector<CrossingCase>& CrossingCases() {
+  static const std::vector<CrossingCase> cases = {
+      {"vase", 1.0, Crossing::kTop, "vase_cropped_at_the_top"},
+      {"cylinder", 1.0, Crossing::kTop, "cylinder_cropped_at_the_top"},
+      {"vase", 1.0, Crossing::kBottom, "light_vase_on_the_bottom_edge"},
+      {"cone", 1.0, Crossing::kBottom, "light_cone_on_the_bottom_edge"},
+  };
+  return cases;
+}
+
+TEST(ObjectTouchingTheFrameEdge, GraphCutAndAutoKeepItOverBlack) {
+  for (const CrossingCase& c : CrossingCases()) {
+    const Frame frame = CrossingTheEdge(c.object, c.albedo, c.crossing, 30.0);
+    ASSERT_FALSE(frame.image.empty());
+    const double graphcut = SegmentIoU(frame, "graphcut");
+    const double automatic = SegmentIoU(frame, "auto");
+    std::printf("%-32s IoU graphcut %.4f auto %.4f\n", c.name.c_str(), graphcut, automatic);
+    EXPECT_GE(graphcut, 0.97) << c.name;
+    EXPECT_GE(automatic, 0.97) << c.name;
+  }
+}
+
+// Known failure, not fixed yet: the same objects with their lower third in deep shadow (15 %)
+// give graphcut 0.70 (vase cropped at the top), 0.999 (cylinder), 0.50 (light vase on the bottom
+// edge), 0.44 (light cone); main before the body rule: 0.60, 0.84, 0.50, 0.44. Neither learning
+// the edge colours outside the body above the noise nor sparing the brought-in pixels on the
+// outline from "backdrop for sure" changed these, so the cut happens elsewhere (to find).
+TEST(ObjectTouchingTheFrameEdge, DISABLED_GraphCutAndAutoKeepItsDeepShadowOverBlack) {
+  for (const CrossingCase& c : CrossingCases()) {
+    const Frame frame = CrossingTheEdge(c.object, c.albedo, c.crossing, 30.0, true);
+    ASSERT_FALSE(frame.image.empty());
+    const double graphcut = SegmentIoU(frame, "graphcut");
+    const double automatic = SegmentIoU(frame, "auto");
+    std::printf("shadowed %-32s IoU graphcut %.4f auto %.4f\n", c.name.c_str(), graphcut,
+                automatic);
+    EXPECT_GE(graphcut, 0.97) << c.name;
+    EXPECT_GE(automatic, 0.97) << c.name;
+  }
+}
+
+TEST(ObjectTouchingTheFrameEdge, ASetOverBlackKeepsIt) {
+  for (const CrossingCase& c : CrossingCases()) {
+    std::vector<cv::Mat> frames;
+    std::vector<cv::Mat> truths;
+    for (int k = 0; k < 6; ++k) {
+      const Frame frame = CrossingTheEdge(c.object, c.albedo, c.crossing, 60.0 * k);
+      ASSERT_FALSE(frame.image.empty());
+      frames.push_back(frame.image);
+      truths.push_back(frame.truth);
+    }
+    for (const std::string method : {"graphcut", "auto"}) {
+      SegmentOptions options;
+      options.method = method;
+      Expected<SetSegmentation> set = SegmentImageSet(frames, options);
+      ASSERT_TRUE(set.has_value()) << set.error().ToString();
+      double sum = 0.0;
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        EXPECT_TRUE(set->problems[k].empty()) << c.name << ": " << set->problems[k];
+        sum += IoU(set->masks[k], truths[k]);
+      }
+      const double mean = sum / static_cast<double>(frames.size());
+      std::printf("set %-28s %s (%s) mean IoU %.4f\n", c.name.c_str(), method.c_str(),
+                  set->method.c_str(), mean);
+      EXPECT_GE(mean, 0.97) << c.name << " " << method;
+    }
+  }
+}
+
 TEST(SetSegmentation, AFrameWithoutObjectIsNamedNotFatal) {
   auto camera = Camera("sphere", 1.0);
   ASSERT_NE(camera, nullptr);
