@@ -68,10 +68,10 @@ class HullReconstructor final : public Reconstructor {
     const VoxelGrid& grid = hull_.grid();
     Logger("reconstruct")
         ->info(
-            "hull: {} views, {}x{}x{} voxels of {:.3f} mm, {} occupied; mesh {} vertices, {} "
+            "hull: {} views, {}x{}x{} voxels of {:.3g} {}, {} occupied; mesh {} vertices, {} "
             "triangles in {:.0f} ms",
             hull_.view_count(), grid.dims.x(), grid.dims.y(), grid.dims.z(), grid.voxel_mm,
-            hull_.OccupiedCount(), mesh.vertices.size(), mesh.faces.size(),
+            options_.length_unit, hull_.OccupiedCount(), mesh.vertices.size(), mesh.faces.size(),
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count());
     if (mesh.faces.empty()) {

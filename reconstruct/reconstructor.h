@@ -24,6 +24,9 @@ struct ReconstructOptions {
   // the plate, so nothing below the plate is ever part of the model.
   Eigen::Vector3d bbox_min_mm{-60.0, -60.0, 0.0};
   Eigen::Vector3d bbox_max_mm{60.0, 60.0, 120.0};
+  // The unit the log gives lengths in: mm for a scan; `reconstruct --images` sets the cameras
+  // file's unit ("units") or "px" (thesis mode), as the *_mm lengths are then in those.
+  std::string length_unit = "mm";
   // each one of ply | obj | stl | glb | wrl
   std::vector<std::string> formats = {"ply", "obj", "stl", "glb", "wrl"};
   // hull: colour from the frames (reconstruct/texture/texture.h): vertex colours always, and a

@@ -326,6 +326,7 @@ class ImagesRun {
     reconstruct_options.resolution = options_.resolution;
     reconstruct_options.bbox_min_mm = box_min_;
     reconstruct_options.bbox_max_mm = box_max_;
+    reconstruct_options.length_unit = thesis_mode_ ? "px" : "units";
     // No turntable plate at z = 0 here: thesis mode's z = 0 is the bottom row, a cameras file's
     // frame is its own.
     reconstruct_options.flat_bottom = false;
