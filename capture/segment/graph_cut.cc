@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/segment/colour_cut.h"
+#include "capture/segment/mask_ops.h"
 
 namespace revolve::capture {
 namespace {
@@ -171,17 +172,8 @@ cv::Mat Body(const cv::Mat& full) {
     const double scale = double(kMaxSidePx) / side;
     cv::resize(full, mask, cv::Size(), scale, scale, cv::INTER_NEAREST);
   }
-  cv::Mat components, stats, centroids;
-  const int count = cv::connectedComponentsWithStats(mask, components, stats, centroids, 8, CV_32S);
-  int largest = 0;
-  for (int i = 1; i < count; ++i) {
-    if (largest == 0 ||
-        stats.at<int>(i, cv::CC_STAT_AREA) > stats.at<int>(largest, cv::CC_STAT_AREA)) {
-      largest = i;
-    }
-  }
-  if (largest == 0) return cv::Mat(full.size(), CV_8UC1, cv::Scalar(0));
-  const cv::Mat component = components == largest;
+  const cv::Mat component = KeepLargestComponent(mask);
+  if (cv::countNonZero(component) == 0) return cv::Mat(full.size(), CV_8UC1, cv::Scalar(0));
   cv::Mat depth;
   cv::distanceTransform(component, depth, cv::DIST_L2, 3);
   double deepest = 0.0;

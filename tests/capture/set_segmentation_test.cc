@@ -24,6 +24,16 @@ double IoU(const cv::Mat& a, const cv::Mat& b) {
   return uni == 0.0 ? 1.0 : inter / uni;
 }
 
+// The mean IoU of a set's masks with their truths; every frame must have been segmented.
+double MeanIoU(const SetSegmentation& set, const std::vector<cv::Mat>& truths) {
+  double sum = 0.0;
+  for (std::size_t k = 0; k < truths.size(); ++k) {
+    EXPECT_TRUE(set.problems[k].empty()) << "frame " << k << ": " << set.problems[k];
+    sum += IoU(set.masks[k], truths[k]);
+  }
+  return sum / static_cast<double>(truths.size());
+}
+
 enum class Scene { kUnevenCloth, kLightShadow, kBlackShadowedObject };
 
 struct Frame {
@@ -187,14 +197,10 @@ TEST(SetSegmentation, ATurntableSequenceTeachesTheBackdrop) {
   ASSERT_TRUE(set.has_value()) << set.error().ToString();
   EXPECT_EQ(set->method, "background") << set->reason;
   EXPECT_NE(set->reason.find("learned"), std::string::npos) << set->reason;
-  double sum = 0.0;
-  for (std::size_t k = 0; k < frames.size(); ++k) {
-    EXPECT_TRUE(set->problems[k].empty()) << set->problems[k];
-    sum += IoU(set->masks[k], truths[k]);
-  }
+  const double mean = MeanIoU(*set, truths);
   std::printf("turntable over an uneven cloth: auto (%s) mean IoU %.4f\n", set->method.c_str(),
-              sum / frames.size());
-  EXPECT_GE(sum / frames.size(), 0.97);
+              mean);
+  EXPECT_GE(mean, 0.97);
 }
 
 TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
@@ -210,14 +216,10 @@ TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
   options.method = "auto";
   Expected<SetSegmentation> set = SegmentImageSet(frames, options);
   ASSERT_TRUE(set.has_value()) << set.error().ToString();
-  double sum = 0.0;
-  for (std::size_t k = 0; k < frames.size(); ++k) {
-    EXPECT_TRUE(set->problems[k].empty()) << set->problems[k];
-    sum += IoU(set->masks[k], truths[k]);
-  }
+  const double mean = MeanIoU(*set, truths);
   std::printf("turntable over black, deep shadows: auto (%s) mean IoU %.4f\n", set->method.c_str(),
-              sum / frames.size());
-  EXPECT_GE(sum / frames.size(), 0.97);
+              mean);
+  EXPECT_GE(mean, 0.97);
 }
 
 // The object over black (level 4, noise sigma 3), shifted so it crosses the frame's top edge (a
@@ -310,12 +312,7 @@ TEST(ObjectTouchingTheFrameEdge, ASetOverBlackKeepsIt) {
       options.method = method;
       Expected<SetSegmentation> set = SegmentImageSet(frames, options);
       ASSERT_TRUE(set.has_value()) << set.error().ToString();
-      double sum = 0.0;
-      for (std::size_t k = 0; k < frames.size(); ++k) {
-        EXPECT_TRUE(set->problems[k].empty()) << c.name << ": " << set->problems[k];
-        sum += IoU(set->masks[k], truths[k]);
-      }
-      const double mean = sum / static_cast<double>(frames.size());
+      const double mean = MeanIoU(*set, truths);
       std::printf("set %-28s %s (%s) mean IoU %.4f\n", c.name.c_str(), method.c_str(),
                   set->method.c_str(), mean);
       EXPECT_GE(mean, 0.97) << c.name << " " << method;
