@@ -6,8 +6,7 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
-
+#include "base/image_codecs.h"
 #include "base/image_verify.h"
 
 namespace revolve {
@@ -94,12 +93,16 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
                              options.expected_size->height));
   }
   cv::Mat image;
-  // The common PNGs (masks, frames) are decoded once, strictly.
-  if (header->format == ImageFormat::kPng) {
-    if (auto decoded = DecodeVerifiedPng(*bytes, options.imread_flags)) {
-      if (!*decoded) return Named(path, decoded->error().code, decoded->error().message);
-      image = std::move(**decoded);
-    }
+  // The common PNGs and JPEGs (masks, frames, photos) are decoded once, strictly.
+  std::optional<Expected<cv::Mat>> decoded;
+  if (header->format == ImageFormat::kPng)
+    decoded = DecodeVerifiedPng(*bytes, options.imread_flags);
+  if (header->format == ImageFormat::kJpeg) {
+    decoded = DecodeVerifiedJpeg(*bytes, options.imread_flags);
+  }
+  if (decoded) {
+    if (!*decoded) return Named(path, decoded->error().code, decoded->error().message);
+    image = std::move(**decoded);
   }
   if (image.empty()) {
     // Decoded once with every warning of the format's library fatal: OpenCV prints them and
@@ -107,11 +110,11 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
     if (auto verified = VerifyImageData(header->format, *bytes); !verified) {
       return Named(path, verified.error().code, verified.error().message);
     }
-    try {
-      image = cv::imdecode(*bytes, options.imread_flags);
-    } catch (const cv::Exception& e) {
-      return Named(path, ErrorCode::kBadInput, fmt::format("cannot decode: {}", e.what()));
+    Expected<cv::Mat> opencv = DecodeImage(*bytes, options.imread_flags);
+    if (!opencv && opencv.error().code != ErrorCode::kBadInput) {
+      return Named(path, opencv.error().code, opencv.error().message);
     }
+    if (opencv) image = std::move(*opencv);
   }
   if (image.empty()) {
     return Named(path, ErrorCode::kBadInput,

@@ -4,6 +4,7 @@
 // only trivially destructible locals, and what outlives the jump lives in a context object owned
 // by its caller.
 #include <algorithm>
+#include <array>
 #include <csetjmp>
 #include <cstdarg>
 #include <cstdio>
@@ -92,6 +93,74 @@ Expected<void> VerifyJpeg(Bytes b) {
   if (ok) return {};
   return Bad(ImageFormat::kJpeg, fmt::format("libjpeg {}: \"{}\"",
                                              context.warning ? "warns" : "fails", context.message));
+}
+
+// The EXIF orientation (tag 0x0112 of IFD0) in a saved APP1 marker: 1 (upright) when the
+// marker is not EXIF or has no such tag, nullopt when it cannot be read.
+std::optional<int> ExifOrientation(const jpeg_saved_marker_ptr marker) {
+  const std::span<const std::uint8_t> b(marker->data, marker->data_length);
+  if (b.size() < 14 || std::memcmp(b.data(), "Exif\0\0", 6) != 0) return 1;
+  const std::span<const std::uint8_t> tiff = b.subspan(6);
+  const bool little = tiff[0] == 'I' && tiff[1] == 'I';
+  if (!little && !(tiff[0] == 'M' && tiff[1] == 'M')) return std::nullopt;
+  auto u16 = [&](std::size_t at) -> std::uint32_t {
+    return little ? tiff[at] | (tiff[at + 1] << 8) : (tiff[at] << 8) | tiff[at + 1];
+  };
+  auto u32 = [&](std::size_t at) -> std::uint32_t {
+    return little ? u16(at) | (u16(at + 2) << 16) : (u16(at) << 16) | u16(at + 2);
+  };
+  const std::size_t ifd = u32(4);
+  if (ifd + 2 > tiff.size()) return std::nullopt;
+  const std::uint32_t entries = u16(ifd);
+  for (std::uint32_t e = 0; e < entries; ++e) {
+    const std::size_t at = ifd + 2 + 12 * std::size_t{e};
+    if (at + 12 > tiff.size()) return std::nullopt;
+    if (u16(at) == 0x0112) return static_cast<int>(u16(at + 8));
+  }
+  return 1;
+}
+
+struct JpegPixels {
+  int imread_flags = cv::IMREAD_UNCHANGED;
+  cv::Mat image;
+  bool other_kind = false;
+};
+
+// Decodes to pixels as OpenCV's JPEG decoder does (the same libjpeg settings: BGR or grey out,
+// the accurate DCT, fancy upsampling), every warning fatal. Returns false with context.message
+// set when libjpeg complained, or with pixels.other_kind set when OpenCV would do more (CMYK,
+// an EXIF turn).
+bool DecodeJpegPixels(Bytes b, jpeg_decompress_struct& cinfo, JpegContext& context,
+                      JpegPixels& pixels) {
+  if (setjmp(context.jump) != 0) return false;
+  jpeg_mem_src(&cinfo, b.data(), static_cast<unsigned long>(b.size()));
+  jpeg_save_markers(&cinfo, JPEG_APP0 + 1, 0xFFFF);
+  jpeg_read_header(&cinfo, TRUE);
+  const int flags = pixels.imread_flags;
+  bool turned = false;
+  for (jpeg_saved_marker_ptr m = cinfo.marker_list; m != nullptr; m = m->next) {
+    const std::optional<int> orientation = ExifOrientation(m);
+    turned = turned || orientation != 1;
+  }
+  const J_COLOR_SPACE space = cinfo.jpeg_color_space;
+  if (space != JCS_YCbCr && space != JCS_GRAYSCALE && space != JCS_RGB) pixels.other_kind = true;
+  if (turned && flags != cv::IMREAD_UNCHANGED) pixels.other_kind = true;
+  if (pixels.other_kind) return false;
+  const bool colour =
+      flags == cv::IMREAD_COLOR || (flags == cv::IMREAD_UNCHANGED && cinfo.num_components == 3);
+  cinfo.out_color_space = colour ? JCS_EXT_BGR : JCS_GRAYSCALE;
+  jpeg_start_decompress(&cinfo);
+  pixels.image.create(static_cast<int>(cinfo.output_height), static_cast<int>(cinfo.output_width),
+                      colour ? CV_8UC3 : CV_8UC1);
+  std::array<JSAMPROW, 16> rows{};
+  while (cinfo.output_scanline < cinfo.output_height) {
+    const JDIMENSION first = cinfo.output_scanline;
+    const JDIMENSION count = std::min<JDIMENSION>(rows.size(), cinfo.output_height - first);
+    for (JDIMENSION i = 0; i < count; ++i) rows[i] = pixels.image.ptr(static_cast<int>(first + i));
+    jpeg_read_scanlines(&cinfo, rows.data(), count);
+  }
+  jpeg_finish_decompress(&cinfo);  // reads on to the end-of-image marker
+  return true;
 }
 
 // ---- PNG --------------------------------------------------------------------------------------
@@ -331,6 +400,29 @@ std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t>
   if (ok) return std::move(context.image);
   if (context.other_kind) return std::nullopt;
   return Bad(ImageFormat::kPng, fmt::format("libpng fails: \"{}\"", context.message));
+}
+
+std::optional<Expected<cv::Mat>> DecodeVerifiedJpeg(std::span<const std::uint8_t> bytes,
+                                                    int imread_flags) {
+  if (imread_flags != cv::IMREAD_UNCHANGED && imread_flags != cv::IMREAD_COLOR &&
+      imread_flags != cv::IMREAD_GRAYSCALE) {
+    return std::nullopt;
+  }
+  JpegContext context;
+  JpegPixels pixels;
+  pixels.imread_flags = imread_flags;
+  jpeg_decompress_struct cinfo{};
+  cinfo.err = jpeg_std_error(&context.manager);
+  context.manager.error_exit = JpegErrorExit;
+  context.manager.emit_message = JpegEmitMessage;
+  context.manager.output_message = JpegOutputMessage;
+  jpeg_create_decompress(&cinfo);
+  const bool ok = DecodeJpegPixels(bytes, cinfo, context, pixels);
+  jpeg_destroy_decompress(&cinfo);
+  if (ok) return std::move(pixels.image);
+  if (pixels.other_kind) return std::nullopt;
+  return Bad(ImageFormat::kJpeg, fmt::format("libjpeg {}: \"{}\"",
+                                             context.warning ? "warns" : "fails", context.message));
 }
 
 Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t> bytes) {

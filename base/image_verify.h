@@ -38,4 +38,12 @@ Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t>
 std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t> bytes,
                                                    int imread_flags);
 
+// The same for a JPEG: decoded once, every libjpeg warning fatal, to the pixels cv::imdecode gives
+// (the same library and settings: BGR or grey, the accurate DCT, fancy upsampling); flags
+// IMREAD_UNCHANGED, IMREAD_COLOR or IMREAD_GRAYSCALE. nullopt for what OpenCV would do more with:
+// CMYK or YCCK files, an EXIF orientation other than upright (OpenCV turns the picture) unless
+// IMREAD_UNCHANGED, other flags.
+std::optional<Expected<cv::Mat>> DecodeVerifiedJpeg(std::span<const std::uint8_t> bytes,
+                                                    int imread_flags);
+
 }  // namespace revolve

@@ -7,10 +7,10 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "base/atomic_file.h"
+#include "base/image_codecs.h"
 #include "base/log.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
@@ -123,9 +123,11 @@ std::optional<LiveBlob> LiveView::FrameJpeg() {
         std::max(1, static_cast<int>(std::lround(std::max(image.cols, image.rows) / 300.0)));
     cv::polylines(image, contours, true, cv::Scalar(0, 255, 0), thickness, cv::LINE_AA);
   }
-  std::vector<unsigned char> jpeg;
-  cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality});
-  LiveBlob blob{std::string(jpeg.begin(), jpeg.end()), stop.scan_id, stop.index, 0, version};
+  // An image that cannot be encoded (or no codecs) shows no picture; the stop goes on.
+  const Expected<std::vector<std::uint8_t>> jpeg =
+      EncodeImage(".jpg", image, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality});
+  LiveBlob blob{jpeg ? std::string(jpeg->begin(), jpeg->end()) : std::string(), stop.scan_id,
+                stop.index, 0, version};
   std::lock_guard lock(frame_mutex_);
   if (!frame_jpeg_ || frame_jpeg_->version < version) frame_jpeg_ = blob;
   return blob;

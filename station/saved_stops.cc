@@ -4,7 +4,6 @@
 #include <optional>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "base/image_read.h"
 #include "station/manifest.h"

@@ -10,9 +10,9 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
+#include "base/image_codecs.h"
 #include "base/text_file.h"
 #include "station/manifest.h"
 
@@ -67,13 +67,14 @@ Expected<void> ScanFolder::Write(const std::string& relative, std::span<const ch
 }
 
 Expected<void> ScanFolder::WriteImage(const std::string& relative, const cv::Mat& image) const {
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", image, png)) {
-    return MakeError(ErrorCode::kInternal,
-                     fmt::format("{}: cannot encode the image as PNG", (dir_ / relative).string()));
+  const Expected<std::vector<std::uint8_t>> png = EncodeImage(".png", image);
+  if (!png) {
+    return MakeError(png.error().code,
+                     fmt::format("{}: cannot encode the image as PNG: {}",
+                                 (dir_ / relative).string(), png.error().message));
   }
   return Write(relative,
-               std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
+               std::span<const char>(reinterpret_cast<const char*>(png->data()), png->size()));
 }
 
 Expected<void> ScanFolder::WriteText(const std::string& relative, std::string_view text) const {

@@ -10,8 +10,8 @@
 #include <thread>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
+#include "base/image_read.h"
 #include "capture/quality.h"
 #include "capture/segment/set_segmentation.h"
 #include "reconstruct/io/mesh_io.h"
@@ -398,13 +398,16 @@ Expected<void> ScanSession::PrepareSegmentation(Stops& run) {
   const bool automatic = segment.method == "auto";
   if (!background_method && !automatic) return {};
   if (const auto& file = segment.background_file; !file.empty()) {
-    run.background = cv::imread(file.string(), cv::IMREAD_COLOR);
-    if (run.background.empty()) {
+    ImageReadOptions read_options;
+    read_options.imread_flags = cv::IMREAD_COLOR;
+    Expected<cv::Mat> background = ReadImageFile(file, read_options);
+    if (!background) {
       return MakeError(ErrorCode::kNotFound,
-                       fmt::format("[segment] background_file: cannot read {} (take it with "
-                                   "`revolve camera snapshot {}` with the plate empty)",
-                                   file.string(), file.string()));
+                       fmt::format("[segment] background_file: {} (take it with `revolve camera "
+                                   "snapshot {}` with the plate empty)",
+                                   background.error().message, file.string()));
     }
+    run.background = std::move(*background);
   } else if (background_method) {
     auto frame = devices_.camera->CaptureBackground(
         Clock::now(), std::chrono::duration_cast<Clock::duration>(

@@ -5,10 +5,10 @@
 #include <cmath>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_files.h"
+#include "base/image_read.h"
 #include "base/log.h"
 
 namespace revolve::capture {
@@ -124,13 +124,13 @@ Expected<std::unique_ptr<ReplayCamera>> ReplayCamera::Create(
   } else {
     first = std::filesystem::path(options.dir) / ExpandReplayPattern(options.pattern, 0, 0);
   }
-  const cv::Mat image = cv::imread(first.string(), cv::IMREAD_UNCHANGED);
-  if (image.empty()) {
-    return MakeError(std::filesystem::exists(first) ? ErrorCode::kBadInput : ErrorCode::kNotFound,
-                     fmt::format("replay: cannot read the first image {}", first.string()));
+  const Expected<cv::Mat> image = ReadImageFile(first);
+  if (!image) {
+    return MakeError(image.error().code,
+                     fmt::format("replay: cannot read the first image: {}", image.error().message));
   }
   return std::unique_ptr<ReplayCamera>(
-      new ReplayCamera(options, std::move(plate), std::move(files), image.size()));
+      new ReplayCamera(options, std::move(plate), std::move(files), image->size()));
 }
 
 ReplayCamera::ReplayCamera(const ReplayOptions& options,
@@ -184,11 +184,14 @@ std::filesystem::path ReplayCamera::PathForStop(int index) const {
 }
 
 Expected<cv::Mat> ReplayCamera::Load(const std::filesystem::path& path) const {
-  cv::Mat image = cv::imread(path.string(), cv::IMREAD_COLOR);
-  if (image.empty()) {
-    return MakeError(std::filesystem::exists(path) ? ErrorCode::kBadInput : ErrorCode::kNotFound,
-                     fmt::format("replay: cannot read {}", path.string()));
+  ImageReadOptions read_options;
+  read_options.imread_flags = cv::IMREAD_COLOR;
+  Expected<cv::Mat> read = ReadImageFile(path, read_options);
+  if (!read) {
+    return MakeError(read.error().code,
+                     fmt::format("replay: cannot read: {}", read.error().message));
   }
+  cv::Mat image = std::move(*read);
   if (image.size() != size_) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("replay: {} is {}x{}, the first image {}x{}", path.string(),

@@ -5,8 +5,9 @@
 #include <cmath>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "base/image_read.h"
 
 namespace revolve::capture {
 namespace {
@@ -93,12 +94,15 @@ void FlagSmallMasks(const std::vector<cv::Mat>& masks, std::vector<std::string>&
 
 Expected<cv::Mat> ReadBackground(const SegmentOptions& options, cv::Size size) {
   if (options.background_file.empty()) return cv::Mat();
-  cv::Mat frame = cv::imread(options.background_file.string(), cv::IMREAD_COLOR);
-  if (frame.empty()) {
+  ImageReadOptions read_options;
+  read_options.imread_flags = cv::IMREAD_COLOR;
+  Expected<cv::Mat> read = ReadImageFile(options.background_file, read_options);
+  if (!read) {
     return MakeError(ErrorCode::kBadInput,
-                     fmt::format("[segment] background_file: cannot read {} as an image",
-                                 options.background_file.string()));
+                     fmt::format("[segment] background_file: cannot read it as an image: {}",
+                                 read.error().message));
   }
+  cv::Mat frame = std::move(*read);
   if (frame.size() != size) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("[segment] background_file: {} is {}x{} but the images are {}x{}",

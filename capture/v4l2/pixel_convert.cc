@@ -3,7 +3,8 @@
 #include <algorithm>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
+
+#include "base/image_codecs.h"
 
 namespace revolve::capture {
 namespace {
@@ -57,10 +58,10 @@ Expected<cv::Mat> ConvertToBgr(std::span<const std::uint8_t> data, std::uint32_t
     if (!IsCompleteJpeg(data)) {
       return MakeError(ErrorCode::kBadInput, "truncated MJPEG frame (no SOI or EOI marker)");
     }
-    const cv::Mat encoded(1, static_cast<int>(data.size()), CV_8UC1,
-                          const_cast<std::uint8_t*>(data.data()));
-    cv::Mat decoded = cv::imdecode(encoded, cv::IMREAD_COLOR);
-    if (decoded.empty()) return MakeError(ErrorCode::kBadInput, "undecodable MJPEG frame");
+    Expected<cv::Mat> opencv = DecodeImage(data, cv::IMREAD_COLOR);
+    if (!opencv && opencv.error().code != ErrorCode::kBadInput) return opencv;
+    if (!opencv) return MakeError(ErrorCode::kBadInput, "undecodable MJPEG frame");
+    cv::Mat decoded = std::move(*opencv);
     if (decoded.cols != width || decoded.rows != height) {
       return MakeError(ErrorCode::kBadInput,
                        fmt::format("MJPEG frame is {}x{}, the format says {}x{}", decoded.cols,

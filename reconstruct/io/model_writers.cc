@@ -11,7 +11,6 @@
 
 #include <fmt/format.h>
 #include <Eigen/Geometry>
-#include <opencv2/imgcodecs.hpp>
 
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/io/writer_support.h"

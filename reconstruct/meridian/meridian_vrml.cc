@@ -4,9 +4,9 @@
 #include <sstream>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
+#include "base/image_codecs.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -82,16 +82,9 @@ Expected<std::vector<std::filesystem::path>> WriteTexturedVrml(const Mesh& mesh,
   if (mesh.HasViewTexture()) {
     for (std::size_t t = 0; t < mesh.view_texture.images.size(); ++t) {
       const std::string name = fmt::format("{}_tex{:02d}.jpg", stem, t);
-      std::vector<std::uint8_t> bytes;
-      if (!cv::imencode(".jpg", mesh.view_texture.images[t], bytes,
-                        {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) {
-        return MakeError(ErrorCode::kIo, fmt::format("{}: the texture image cannot be encoded",
-                                                     (path.parent_path() / name).string()));
-      }
       const std::filesystem::path image_path = path.parent_path() / name;
-      if (Expected<void> w = WriteFileAtomically(
-              image_path,
-              std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+      if (Expected<void> w = WriteImageFile(image_path, mesh.view_texture.images[t],
+                                            {cv::IMWRITE_JPEG_QUALITY, kJpegQuality});
           !w) {
         return std::unexpected(w.error());
       }

@@ -14,8 +14,9 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
-#include <opencv2/imgcodecs.hpp>
 
+#include "base/image_codecs.h"
+#include "base/image_read.h"
 #include "calibrate/axis.h"
 #include "calibrate/board.h"
 #include "calibrate/calibration.h"
@@ -349,12 +350,14 @@ class Calibrator {
       std::vector<cv::Mat> images;
       std::vector<std::string> names;
       for (const std::filesystem::path& file : *files) {
-        cv::Mat image = cv::imread(file.string(), cv::IMREAD_COLOR);
-        if (image.empty()) {
-          fmt::print(out_, "{}: not an image OpenCV can read; skipped\n", file.string());
+        ImageReadOptions read_options;
+        read_options.imread_flags = cv::IMREAD_COLOR;
+        Expected<cv::Mat> image = ReadImageFile(file, read_options);
+        if (!image) {
+          fmt::print(out_, "{}; skipped\n", image.error().message);
           continue;
         }
-        images.push_back(std::move(image));
+        images.push_back(std::move(*image));
         names.push_back(file.filename().string());
       }
       fmt::print(out_, "lens: {} images from {}, board {}\n", images.size(),
@@ -523,17 +526,10 @@ class Calibrator {
     auto image = cal::PrintableBoard(*board);
     if (!image) return Fail(kExitUsage, image.error().message);
     const std::filesystem::path path = options_.out ? *options_.out : "board.png";
-    bool written = false;
-    try {
-      written = cv::imwrite(path.string(), image->image);
-    } catch (const cv::Exception& e) {
-      return Fail(kExitFailed,
-                  fmt::format("{}: cannot write the image: {}", path.string(), e.what()));
-    }
-    if (!written) {
-      return Fail(kExitFailed, fmt::format("{}: cannot write the image (is the folder there and "
-                                           "the extension one OpenCV writes: png, tif, ...?)",
-                                           path.string()));
+    if (Expected<void> written = WriteImageFile(path, image->image); !written) {
+      return Fail(kExitFailed, fmt::format("{} (is the folder there and the extension one OpenCV "
+                                           "writes: png, tif, ...?)",
+                                           written.error().message));
     }
     const double width_mm = image->image.cols / image->px_per_mm;
     const double height_mm = image->image.rows / image->px_per_mm;

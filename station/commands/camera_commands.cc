@@ -5,9 +5,9 @@
 #include <string>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/image_codecs.h"
 #include "base/sim_plate.h"
 #include "capture/camera.h"
 #include "capture/segmenter.h"
@@ -100,8 +100,8 @@ class CameraCommandsImpl final : public CameraCommands {
       err << "capturing: " << frame.error().ToString() << "\n";
       return kExitFailed;
     }
-    if (!cv::imwrite(file_, frame->image)) {
-      err << "cannot write " << file_ << "\n";
+    if (Expected<void> written = WriteImageFile(file_, frame->image); !written) {
+      err << written.error().message << "\n";
       return kExitFailed;
     }
     out << fmt::format("{}: {}x{} {} frame from {}", file_, format->width_px, format->height_px,
@@ -114,8 +114,8 @@ class CameraCommandsImpl final : public CameraCommands {
         err << "segmenting: " << mask.error().ToString() << "\n";
         return kExitFailed;
       }
-      if (!cv::imwrite(mask_file_, *mask)) {
-        err << "cannot write " << mask_file_ << "\n";
+      if (Expected<void> written = WriteImageFile(mask_file_, *mask); !written) {
+        err << written.error().message << "\n";
         return kExitFailed;
       }
       out << fmt::format("{}: silhouette of {} px\n", mask_file_, cv::countNonZero(*mask));

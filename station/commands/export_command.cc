@@ -6,9 +6,9 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
+#include "base/image_codecs.h"
 #include "reconstruct/cameras/camera_export.h"
 #include "station/exit_codes.h"
 #include "station/saved_stops.h"
@@ -133,13 +133,14 @@ Result<void> WriteImagesAndMasks(const ScanCameras& scan, const fs::path& out) {
     }
     if (auto w = Write(out / "images" / scan.images[i].name, bytes.str()); !w) return w;
     cv::Mat binary = scan.masks[i] != 0;  // 255 object, 0 ignore
-    std::vector<std::uint8_t> png;
-    if (!cv::imencode(".png", binary, png)) {
-      return std::unexpected(Fail(
-          kExitFailed, fmt::format("{}: the mask cannot be encoded", scan.images[i].mask_name)));
+    const Expected<std::vector<std::uint8_t>> png = EncodeImage(".png", binary);
+    if (!png) {
+      return std::unexpected(
+          Fail(kExitFailed, fmt::format("{}: the mask cannot be encoded: {}",
+                                        scan.images[i].mask_name, png.error().message)));
     }
     if (auto w = Write(out / "masks" / scan.images[i].mask_name,
-                       std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+                       std::string_view(reinterpret_cast<const char*>(png->data()), png->size()));
         !w) {
       return w;
     }

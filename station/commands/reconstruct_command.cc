@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "base/atomic_file.h"
 #include "base/image_read.h"

@@ -4,10 +4,10 @@
 #include <ostream>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "base/atomic_file.h"
+#include "base/image_codecs.h"
 #include "base/log.h"
 #include "capture/segment/set_segmentation.h"
 #include "config/config.h"
@@ -17,17 +17,6 @@
 
 namespace revolve::station {
 namespace {
-
-Expected<void> WritePng(const std::filesystem::path& path, const cv::Mat& image,
-                        const std::vector<int>& params = {}) {
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", image, png, params)) {
-    return MakeError(ErrorCode::kInternal,
-                     fmt::format("{}: cannot encode the image as PNG", path.string()));
-  }
-  return WriteFileAtomically(
-      path, std::span<const char>(reinterpret_cast<const char*>(png.data()), png.size()));
-}
 
 constexpr double kMinConsensus = 0.85;
 constexpr double kConsensusMargin = 0.15;
@@ -111,7 +100,7 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
         masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
     const std::filesystem::path path =
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
-    written[i] = WritePng(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1});
+    written[i] = WriteImageFile(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1});
     if (!written[i]) return;
     cv::Mat shown;
     if (i < photos.size() && !photos[i].empty()) {
@@ -124,7 +113,7 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   for (const Expected<void>& w : written) {
     if (!w) return w;
   }
-  return WritePng(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
+  return WriteImageFile(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
 }
 
 Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,

@@ -243,6 +243,60 @@ TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
   EXPECT_FALSE(*refused);
 }
 
+// The one-pass JPEG decoder gives what OpenCV gives, pixel for pixel: colour (4:2:0 and
+// progressive) and grey files under every flag it takes.
+TEST(DecodeVerifiedJpeg, MatchesOpenCvForColourGreyAndProgressiveUnderEveryFlag) {
+  const cv::Mat bgr = TexturedPicture(83, 61);  // odd sizes: partial MCUs at both edges
+  cv::Mat grey;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  const std::vector<Bytes> files = {EncodeImage(".jpg", bgr), EncodeImage(".jpg", grey),
+                                    EncodeImage(".jpg", bgr, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}),
+                                    EncodeImage(".jpg", bgr, {cv::IMWRITE_JPEG_QUALITY, 100})};
+  int decoded = 0;
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
+      const cv::Mat expected = cv::imdecode(files[f], flags);
+      const std::optional<Expected<cv::Mat>> mine = DecodeVerifiedJpeg(files[f], flags);
+      ASSERT_TRUE(mine) << "file " << f << ", flags " << flags;
+      ASSERT_TRUE(*mine) << (*mine).error().message;
+      ++decoded;
+      ASSERT_EQ((*mine)->type(), expected.type()) << "file " << f << ", flags " << flags;
+      ASSERT_EQ((*mine)->size(), expected.size());
+      EXPECT_EQ(cv::norm(**mine, expected, cv::NORM_INF), 0.0) << "file " << f << ", " << flags;
+    }
+  }
+  EXPECT_EQ(decoded, 12);
+}
+
+// A JPEG whose EXIF says "turn a quarter" is left to OpenCV (which turns it), except when the
+// caller asked for the file unchanged.
+TEST(DecodeVerifiedJpeg, AnExifTurnIsLeftToOpenCvUnlessUnchanged) {
+  const Bytes plain = EncodeImage(".jpg", TexturedPicture(40, 24));
+  // APP1: "Exif\0\0", a little-endian TIFF header, IFD0 with one entry: orientation (0x0112,
+  // SHORT, 1) = 6.
+  const Bytes exif = {0xFF, 0xE1, 0x00, 0x22, 'E', 'x', 'i', 'f', 0,    0,    'I', 'I',
+                      0x2A, 0,    8,    0,    0,   0,   1,   0,   0x12, 0x01, 3,   0,
+                      1,    0,    0,    0,    6,   0,   0,   0,   0,    0,    0,   0};
+  Bytes turned(plain.begin(), plain.begin() + 2);
+  turned.insert(turned.end(), exif.begin(), exif.end());
+  turned.insert(turned.end(), plain.begin() + 2, plain.end());
+  ASSERT_EQ(cv::imdecode(turned, cv::IMREAD_COLOR).size(), cv::Size(24, 40));  // OpenCV turns
+  EXPECT_FALSE(DecodeVerifiedJpeg(turned, cv::IMREAD_COLOR));
+  EXPECT_FALSE(DecodeVerifiedJpeg(turned, cv::IMREAD_GRAYSCALE));
+  const std::optional<Expected<cv::Mat>> unchanged =
+      DecodeVerifiedJpeg(turned, cv::IMREAD_UNCHANGED);
+  ASSERT_TRUE(unchanged && *unchanged);
+  EXPECT_EQ(cv::norm(**unchanged, cv::imdecode(turned, cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0);
+  // Through ReadImageFile the turned picture arrives turned, as before.
+  const test_support::TempDir dir;
+  Write(dir.path() / "turned.jpg", turned);
+  ImageReadOptions options;
+  options.imread_flags = cv::IMREAD_COLOR;
+  const Expected<cv::Mat> read = ReadImageFile(dir.path() / "turned.jpg", options);
+  ASSERT_TRUE(read) << read.error().message;
+  EXPECT_EQ(read->size(), cv::Size(24, 40));
+}
+
 // An RLE8 bitmap cut before its end-of-bitmap mark.
 TEST(ImageHeaderRle, ABmpWhoseRunLengthDataIsCutShortIsRefused) {
   Bytes bmp(54 + 1024, 0);

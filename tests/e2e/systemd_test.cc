@@ -89,6 +89,22 @@ TEST_F(SystemdTest, InstallLaysOutBinariesUnitAndExampleConfig) {
                   (prefix / "share/revolve/examples/revolved.toml").string()},
                  {}, dir_, 60s);
   EXPECT_EQ(check.exit_code, 0) << check.err;
+  // OpenCV's codecs come from the installed plugin, and only when an image needs them
+  // (base/image_codecs.h): glibc's loader trace (LD_DEBUG=files) names every library it loads.
+  const fs::path plugin = prefix / "lib/revolve/librevolve_imgcodecs.so";
+  EXPECT_TRUE(fs::exists(plugin));
+  const CommandResult quiet =
+      RunCommand({(prefix / "bin/revolve").string(), "check-config",
+                  (prefix / "share/revolve/examples/revolved.toml").string()},
+                 {"LD_DEBUG=files"}, dir_, 60s);
+  EXPECT_EQ(quiet.exit_code, 0);
+  EXPECT_EQ(quiet.err.find("imgcodecs"), std::string::npos);
+  const CommandResult board = RunCommand({(prefix / "bin/revolve").string(), "calibrate", "board",
+                                          "--out", (dir_ / "board.png").string()},
+                                         {"LD_DEBUG=files"}, dir_, 60s);
+  EXPECT_EQ(board.exit_code, 0) << board.out;
+  EXPECT_TRUE(fs::exists(dir_ / "board.png"));
+  EXPECT_NE(board.err.find("file=" + plugin.string()), std::string::npos) << board.err;
   const std::string sysusers = ReadAll(prefix / "lib/sysusers.d/revolved.conf");
   EXPECT_NE(sysusers.find("m revolve video"), std::string::npos);
   EXPECT_NE(sysusers.find("m revolve dialout"), std::string::npos);

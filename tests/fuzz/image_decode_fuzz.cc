@@ -16,10 +16,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // The decoders run only on files within a small size here, so that a run stays fast.
   if (!header || header->pixels() > 4'000'000) return 0;
   const bool verified = revolve::VerifyImageData(header->format, bytes).has_value();
-  if (header->format == revolve::ImageFormat::kPng) {
-    // The one-pass decoder agrees with the check, and gives the header's size.
+  const bool png = header->format == revolve::ImageFormat::kPng;
+  if (png || header->format == revolve::ImageFormat::kJpeg) {
+    // The one-pass decoders agree with the check, and give the header's size.
     for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
-      auto decoded = revolve::DecodeVerifiedPng(bytes, flags);
+      auto decoded = png ? revolve::DecodeVerifiedPng(bytes, flags)
+                         : revolve::DecodeVerifiedJpeg(bytes, flags);
       if (!decoded) continue;
       if (decoded->has_value() != verified) std::abort();
       if (*decoded &&
