@@ -3,7 +3,7 @@
 // opencv_imgcodecs pulls in about 140 shared libraries (GDAL, GDCM, codecs of every kind): linked
 // into revolve, loading them took ~65 ms and 32 MB at every start of every command. revolve
 // decodes the common kinds itself (base/image_verify.h: PNG and JPEG) and encodes PNG itself
-// (reconstruct/io/png_encode.h); everything else (BMP, TIFF, PNM, WebP…, JPEG encoding, odd
+// (base/png_encode.h); everything else (BMP, TIFF, PNM, WebP…, JPEG encoding, odd
 // PNGs and JPEGs) goes through these functions, which load the plugin librevolve_imgcodecs.so
 // (base/image_codecs_plugin.cc) once, thread-safely.
 //

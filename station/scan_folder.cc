@@ -13,6 +13,7 @@
 
 #include "base/atomic_file.h"
 #include "base/image_codecs.h"
+#include "base/png_encode.h"
 #include "base/text_file.h"
 #include "station/manifest.h"
 
@@ -67,6 +68,15 @@ Expected<void> ScanFolder::Write(const std::string& relative, std::span<const ch
 }
 
 Expected<void> ScanFolder::WriteImage(const std::string& relative, const cv::Mat& image) const {
+  // Frames and masks (8-bit BGR or grey) by revolve's own encoder; anything else by OpenCV's.
+  if (image.depth() == CV_8U && (image.channels() == 3 || image.channels() == 1)) {
+    const Expected<std::string> own = EncodePng(image);
+    if (!own) {
+      return MakeError(own.error().code,
+                       fmt::format("{}: {}", (dir_ / relative).string(), own.error().message));
+    }
+    return Write(relative, std::span<const char>(own->data(), own->size()));
+  }
   const Expected<std::vector<std::uint8_t>> png = EncodeImage(".png", image);
   if (!png) {
     return MakeError(png.error().code,

@@ -17,6 +17,7 @@
 
 #include <fmt/format.h>
 
+#include "base/png_encode.h"
 #include "reconstruct/io/writer_support.h"
 #include "reconstruct/meridian/meridian_vrml.h"
 
@@ -464,7 +465,7 @@ Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir
       }
     }
     if (needs_png) {
-      Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+      Expected<std::string> encoded = EncodePng(mesh.texture);
       if (encoded) {
         png = std::move(*encoded);
         png_promise.set_value(&png);

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
+#include "base/png_encode.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/io/writer_support.h"
 
@@ -414,7 +415,7 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const PngSource&
 
 Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
   if (!mesh.HasTexture()) return internal::WriteObj(mesh, path, nullptr);
-  Expected<std::string> png = internal::EncodePng(mesh.texture);
+  Expected<std::string> png = EncodePng(mesh.texture);
   if (!png) return std::unexpected(png.error());
   return internal::WriteObj(mesh, path, &*png);
 }
@@ -422,7 +423,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
   std::string png;
   if (mesh.HasTexture()) {
-    Expected<std::string> encoded = internal::EncodePng(mesh.texture);
+    Expected<std::string> encoded = EncodePng(mesh.texture);
     if (!encoded) return std::unexpected(encoded.error());
     png = std::move(*encoded);
   }

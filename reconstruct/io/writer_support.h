@@ -65,11 +65,6 @@ class IndexTexts {
   std::vector<std::uint64_t> words_;  // WordText; empty when a text would not fit
 };
 
-// An 8-bit BGR (or grey) image as PNG bytes (RGB or grey, fast compression), encoded on every
-// core in bands of rows; the bytes do not depend on the number of threads (png_encode.cc).
-// Errors: internal for another kind of image or when zlib fails.
-Expected<std::string> EncodePng(const cv::Mat& image);
-
 // WriteObj with the texture already encoded: `png` is written beside it first; null when the
 // caller writes the PNG (the .mtl names it all the same).
 Expected<void> WriteObj(const Mesh& mesh, const std::filesystem::path& path,

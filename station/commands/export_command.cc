@@ -8,7 +8,7 @@
 #include <fmt/ostream.h>
 
 #include "base/atomic_file.h"
-#include "base/image_codecs.h"
+#include "base/png_encode.h"
 #include "reconstruct/cameras/camera_export.h"
 #include "station/exit_codes.h"
 #include "station/saved_stops.h"
@@ -133,15 +133,13 @@ Result<void> WriteImagesAndMasks(const ScanCameras& scan, const fs::path& out) {
     }
     if (auto w = Write(out / "images" / scan.images[i].name, bytes.str()); !w) return w;
     cv::Mat binary = scan.masks[i] != 0;  // 255 object, 0 ignore
-    const Expected<std::vector<std::uint8_t>> png = EncodeImage(".png", binary);
+    const Expected<std::string> png = EncodePng(binary);
     if (!png) {
       return std::unexpected(
           Fail(kExitFailed, fmt::format("{}: the mask cannot be encoded: {}",
                                         scan.images[i].mask_name, png.error().message)));
     }
-    if (auto w = Write(out / "masks" / scan.images[i].mask_name,
-                       std::string_view(reinterpret_cast<const char*>(png->data()), png->size()));
-        !w) {
+    if (auto w = Write(out / "masks" / scan.images[i].mask_name, std::string_view(*png)); !w) {
       return w;
     }
   }

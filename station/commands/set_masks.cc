@@ -7,8 +7,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/atomic_file.h"
-#include "base/image_codecs.h"
 #include "base/log.h"
+#include "base/png_encode.h"
 #include "capture/segment/set_segmentation.h"
 #include "config/config.h"
 #include "reconstruct/hull/silhouette_consensus.h"
@@ -100,7 +100,7 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
         masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
     const std::filesystem::path path =
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
-    written[i] = WriteImageFile(path, mask, {cv::IMWRITE_PNG_BILEVEL, 1});
+    written[i] = WritePngFile(path, mask);
     if (!written[i]) return;
     cv::Mat shown;
     if (i < photos.size() && !photos[i].empty()) {
@@ -113,7 +113,7 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   for (const Expected<void>& w : written) {
     if (!w) return w;
   }
-  return WriteImageFile(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
+  return WritePngFile(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
 }
 
 Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,

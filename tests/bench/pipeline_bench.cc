@@ -13,6 +13,7 @@
 #include <benchmark/benchmark.h>
 
 #include "base/memory.h"
+#include "base/png_encode.h"
 #include "capture/synthetic/render.h"
 #include "capture/synthetic/scene.h"
 #include "reconstruct/hull/visual_hull.h"
@@ -142,7 +143,7 @@ void BM_Stage(benchmark::State& state) {
     } else if (stage == 12) {
       benchmark::DoNotOptimize(hull.ExtractSurface(surface));
     } else if (stage == 13) {
-      benchmark::DoNotOptimize(internal::EncodePng(textured.texture));
+      benchmark::DoNotOptimize(EncodePng(textured.texture));
     } else {
       const std::string format = kFormats[(stage - 2) % 5];
       benchmark::DoNotOptimize(WriteModel(stage < 7 ? plain : textured, dir, "m", {format}));

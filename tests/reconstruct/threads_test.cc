@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/png_encode.h"
 #include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/marching_cubes.h"
 #include "reconstruct/hull/silhouette_consensus.h"
@@ -200,12 +201,12 @@ TEST(Threads, PngOfEveryShapeDecodesToItsPixelsInTheSameBytes) {
                               : static_cast<std::uint8_t>(i + v);
       }
     }
-    const Expected<std::string> all = internal::EncodePng(image);
+    const Expected<std::string> all = EncodePng(image);
     ASSERT_TRUE(all);
     Expected<std::string> one = std::string();
     {
       const ThreadLimit limit(1);
-      one = internal::EncodePng(image);
+      one = EncodePng(image);
     }
     ASSERT_TRUE(one);
     EXPECT_TRUE(*one == *all) << "the PNG differs between 1 thread and all cores";
@@ -217,8 +218,8 @@ TEST(Threads, PngOfEveryShapeDecodesToItsPixelsInTheSameBytes) {
     EXPECT_EQ(cv::norm(decoded, image, cv::NORM_INF), 0.0);
   }
   // Anything but 8-bit grey or BGR is refused, not written wrongly.
-  EXPECT_FALSE(internal::EncodePng(cv::Mat(4, 4, CV_16UC3, cv::Scalar(1))));
-  EXPECT_FALSE(internal::EncodePng(cv::Mat()));
+  EXPECT_FALSE(EncodePng(cv::Mat(4, 4, CV_16UC3, cv::Scalar(1))));
+  EXPECT_FALSE(EncodePng(cv::Mat()));
 }
 
 // Marching cubes polygonises slabs of layers on all cores and joins them: any slab height gives

@@ -1,4 +1,4 @@
-// The texture atlas as PNG, on every core (writer_support.h's EncodePng).
+// 8-bit images as PNG, on every core (base/png_encode.h).
 //
 // A PNG's pixels are one zlib stream, which one deflate call makes on one thread. Here the rows
 // are cut into bands of a fixed number of rows, as pigz cuts a file: each band is filtered and
@@ -19,10 +19,12 @@
 
 #include <fmt/format.h>
 
-#include "reconstruct/io/writer_support.h"
-#include "reconstruct/parallel.h"
+#include <tbb/parallel_for.h>
 
-namespace revolve::reconstruct::internal {
+#include "base/atomic_file.h"
+#include "base/png_encode.h"
+
+namespace revolve {
 namespace {
 
 constexpr int kBandRows = 32;
@@ -134,17 +136,17 @@ Band EncodeBand(const cv::Mat& image, int first_row, int rows, bool last) {
 Expected<std::string> EncodePng(const cv::Mat& image) {
   if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1)) {
     return MakeError(ErrorCode::kInternal,
-                     "cannot encode the texture as PNG: it is not an 8-bit BGR or grey image");
+                     "cannot encode the image as PNG: it is not an 8-bit BGR or grey image");
   }
   const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * image.channels() + 1;
   if (row_bytes * kBandRows > std::numeric_limits<uInt>::max() / 2) {
-    return MakeError(ErrorCode::kInternal,
-                     fmt::format("cannot encode the texture as PNG: {}x{} is too large", image.cols,
-                                 image.rows));
+    return MakeError(
+        ErrorCode::kInternal,
+        fmt::format("cannot encode the image as PNG: {}x{} is too large", image.cols, image.rows));
   }
   const int bands = (image.rows + kBandRows - 1) / kBandRows;
   std::vector<Band> encoded(static_cast<std::size_t>(bands));
-  ParallelFor(0, encoded.size(), [&](std::size_t b) {
+  tbb::parallel_for(std::size_t{0}, encoded.size(), [&](std::size_t b) {
     const int first = static_cast<int>(b) * kBandRows;
     encoded[b] = EncodeBand(image, first, std::min(kBandRows, image.rows - first),
                             static_cast<int>(b) == bands - 1);
@@ -152,7 +154,8 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
   std::uint32_t adler = static_cast<std::uint32_t>(adler32_z(0, nullptr, 0));
   std::size_t size = 8 + 25 + 12;
   for (const Band& band : encoded) {
-    if (!band.ok) return MakeError(ErrorCode::kInternal, "cannot encode the texture: zlib failed");
+    if (!band.ok)
+      return MakeError(ErrorCode::kInternal, "cannot encode the image as PNG: zlib failed");
     adler = static_cast<std::uint32_t>(
         adler32_combine(adler, band.adler, static_cast<z_off_t>(band.filtered_size)));
     size += band.deflated.size() + 12;
@@ -179,4 +182,12 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
   return png;
 }
 
-}  // namespace revolve::reconstruct::internal
+Expected<void> WritePngFile(const std::filesystem::path& path, const cv::Mat& image) {
+  Expected<std::string> png = EncodePng(image);
+  if (!png) {
+    return MakeError(png.error().code, fmt::format("{}: {}", path.string(), png.error().message));
+  }
+  return WriteFileAtomically(path, *png);
+}
+
+}  // namespace revolve
