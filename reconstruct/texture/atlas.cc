@@ -41,6 +41,34 @@ int PackShelves(const std::vector<Rect>& sizes, int width, std::vector<Rect>* pl
 
 }  // namespace
 
+namespace {
+
+// The label ICM gives face i from the labels of its neighbours (`label`): the visible candidate
+// maximising its cosine plus kNeighbourBonus per edge-neighbour with the same view; `keep` when
+// none is visible.
+inline int IcmLabel(const std::vector<float>& face_cos, const Candidates& candidates,
+                    const std::array<int, 3>& around, const std::vector<int>& label, std::size_t i,
+                    int keep) {
+  int out = keep;
+  float best = -std::numeric_limits<float>::infinity();
+  for (int s = 0; s < kCandidates; ++s) {
+    const float c = face_cos[i * kCandidates + s];
+    if (c <= -2.0f) continue;
+    const int view = candidates.view[s];
+    float score = c;
+    for (int nb : around) {
+      if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
+    }
+    if (score > best) {
+      best = score;
+      out = view;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<int> LabelFaces(const std::vector<float>& face_cos,
                             const std::vector<Candidates>& face_candidates,
                             const std::vector<std::array<int, 3>>& neighbours) {
@@ -62,29 +90,53 @@ std::vector<int> LabelFaces(const std::vector<float>& face_cos,
   // Iterated conditional modes: each face takes the visible candidate maximising its cosine plus
   // kNeighbourBonus per edge-neighbour with the same view, so the small islands and ragged
   // borders that nearly equal views leave behind merge into their surroundings. Each pass reads
-  // only the labels of the one before: the faces on all cores.
+  // only the labels of the one before. A face's new label depends on its neighbours' labels
+  // only (a face without a visible candidate keeps its -1), so after the first pass (every face,
+  // on all cores) a pass need only look again at the faces next to one the pass before changed:
+  // the others would choose as they did.
+  if (kSmoothingPasses == 0) return label;
   std::vector<int> next(nf);
-  for (int pass = 0; pass < kSmoothingPasses; ++pass) {
-    ParallelChunks(0, nf, kFacesPerTask, [&](std::size_t lo, std::size_t hi) {
-      for (std::size_t i = lo; i < hi; ++i) {
-        next[i] = label[i];
-        float best = -std::numeric_limits<float>::infinity();
-        for (int s = 0; s < kCandidates; ++s) {
-          const float c = face_cos[i * kCandidates + s];
-          if (c <= -2.0f) continue;
-          const int view = face_candidates[i].view[s];
-          float score = c;
-          for (int nb : neighbours[i]) {
-            if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
-          }
-          if (score > best) {
-            best = score;
-            next[i] = view;
-          }
+  const std::size_t chunks = (static_cast<std::size_t>(nf) + kFacesPerTask - 1) / kFacesPerTask;
+  std::vector<std::vector<int>> changed_in(chunks);  // per chunk, in face order
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    const std::size_t hi = std::min<std::size_t>(nf, (chunk + 1) * kFacesPerTask);
+    for (std::size_t i = chunk * kFacesPerTask; i < hi; ++i) {
+      next[i] = IcmLabel(face_cos, face_candidates[i], neighbours[i], label, i, label[i]);
+      if (next[i] != label[i]) changed_in[chunk].push_back(static_cast<int>(i));
+    }
+  });
+  label.swap(next);
+  std::vector<int> changed;
+  for (const std::vector<int>& part : changed_in)
+    changed.insert(changed.end(), part.begin(), part.end());
+  // Later passes: the faces next to a change (each once), their new labels from the labels of
+  // the pass before, then applied.
+  std::vector<std::uint8_t> listed(nf, 0);
+  std::vector<int> dirty;
+  std::vector<int> relabel;
+  for (int pass = 1; pass < kSmoothingPasses && !changed.empty(); ++pass) {
+    dirty.clear();
+    for (const int f : changed) {
+      for (const int nb : neighbours[f]) {
+        if (nb >= 0 && !listed[nb]) {
+          listed[nb] = 1;
+          dirty.push_back(nb);
         }
       }
+    }
+    relabel.resize(dirty.size());
+    ParallelChunks(0, dirty.size(), kFacesPerTask / 4, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t d = lo; d < hi; ++d) {
+        const auto i = static_cast<std::size_t>(dirty[d]);
+        relabel[d] = IcmLabel(face_cos, face_candidates[i], neighbours[i], label, i, label[i]);
+      }
     });
-    label.swap(next);
+    changed.clear();
+    for (std::size_t d = 0; d < dirty.size(); ++d) {
+      listed[dirty[d]] = 0;
+      if (relabel[d] != label[dirty[d]]) changed.push_back(dirty[d]);
+    }
+    for (std::size_t d = 0; d < dirty.size(); ++d) label[dirty[d]] = relabel[d];
   }
   return label;
 }

@@ -292,7 +292,7 @@ class ViewSweep {
     const float cell_mm = cell_px * mm_per_px;
     Window window;
     PendVertices(k, g, cell_mm, &window);
-    PendFaces(k, g, &window);
+    PendFaces(k, g, cell_mm, &window);
     if (pending_faces_.empty() && pending_vertices_.empty()) return;
     DepthCells cells(g.width, g.height, cell_px, window.u_min, window.v_min, window.u_max,
                      window.v_max);
@@ -300,15 +300,16 @@ class ViewSweep {
     for (const VertexPending& p : pending_vertices_) cells.Mark(p.u, p.v);
     cells.EndMarks();
     Splat(k, g, &cells);
-    Record(k, g, cells, cell_mm, samples);
+    Record(k, cells, samples);
   }
 
  private:
-  struct Pending {  // a candidate face to test in a view
+  struct Pending {  // a candidate face to test in a view, with its centroid's PointTerms
     int index;
     int slot;    // the face's candidate slot
     float u, v;  // its pixel
     float cos_angle;
+    float depth, tolerance;
   };
   struct VertexPending {  // a candidate vertex to test in a view, with its PointTerms
     int index;
@@ -369,23 +370,59 @@ class ViewSweep {
     pending_vertices_.resize(kept);
   }
 
-  // pending_faces_: the same for the faces view k may texture (their centroids).
-  void PendFaces(int k, const ViewGeometry& g, Window* window) {
+  // pending_faces_: the same for the faces view k may texture (their centroids, with the
+  // smoothed normal's PointTerms; a face whose own normal does not face the camera is left out).
+  // Gathered, then computed in the vectorised loops as the vertices are.
+  void PendFaces(int k, const ViewGeometry& g, float cell_mm, Window* window) {
     pending_faces_.clear();
     const Surface& s = in_.surface;
-    for (int e = in_.faces.start[k]; e < in_.faces.start[k + 1]; ++e) {
-      const int i = static_cast<int>(in_.faces.entries[e] / kCandidates);
-      const int slot = static_cast<int>(in_.faces.entries[e] % kCandidates);
-      const Eigen::Vector3f to_camera = g.ToCamera(s.centroid[i]);
-      if (Eigen::Vector3f(s.fnx[i], s.fny[i], s.fnz[i]).dot(to_camera) <= 0.0f) continue;
-      const float cos_angle = Eigen::Vector3f(s.snx[i], s.sny[i], s.snz[i]).dot(to_camera);
-      float u, v;
-      if (cos_angle < in_.cos_min || !g.Project(s.centroid[i], &u, &v) || !g.InImage(u, v)) {
-        continue;
-      }
-      pending_faces_.push_back(Pending{i, slot, u, v, cos_angle});
-      window->Add(u, v);
+    const int first = in_.faces.start[k];
+    const int count = in_.faces.start[k + 1] - first;
+    for (auto* scratch : {&cx_, &cy_, &cz_, &cnx_, &cny_, &cnz_, &c_cos_, &c_u_, &c_v_, &c_depth_,
+                          &c_tolerance_, &c_weight_, &cfx_, &cfy_, &cfz_, &c_own_cos_}) {
+      scratch->resize(count);
     }
+    c_front_.resize(count);
+    for (int j = 0; j < count; ++j) {
+      const auto i = static_cast<std::size_t>(in_.faces.entries[first + j] / kCandidates);
+      cx_[j] = s.centroid[i].x();
+      cy_[j] = s.centroid[i].y();
+      cz_[j] = s.centroid[i].z();
+      cnx_[j] = s.snx[i];
+      cny_[j] = s.sny[i];
+      cnz_[j] = s.snz[i];
+      cfx_[j] = s.fnx[i];
+      cfy_[j] = s.fny[i];
+      cfz_[j] = s.fnz[i];
+    }
+    ComputePointTerms(
+        g, in_.max_tan, 2.0f * s.mean_edge_mm, 4.0f * cell_mm, count,
+        PointTerms{cx_.data(), cy_.data(), cz_.data(), cnx_.data(), cny_.data(), cnz_.data(),
+                   c_cos_.data(), c_u_.data(), c_v_.data(), c_depth_.data(), c_tolerance_.data(),
+                   c_weight_.data(), c_front_.data()});
+    if (g.affine) {
+      CosinesToDirection(g.direction, count, cfx_.data(), cfy_.data(), cfz_.data(),
+                         c_own_cos_.data());
+    } else {
+      CosinesToCentre(g.centre, count, cx_.data(), cy_.data(), cz_.data(), cfx_.data(), cfy_.data(),
+                      cfz_.data(), c_own_cos_.data());
+    }
+    pending_faces_.resize(count);
+    int kept = 0;
+    for (int j = 0; j < count; ++j) {
+      if (c_own_cos_[j] <= 0.0f) continue;
+      if (c_cos_[j] < in_.cos_min || !c_front_[j] || !g.InImage(c_u_[j], c_v_[j])) continue;
+      const std::int64_t entry = in_.faces.entries[first + j];
+      pending_faces_[kept++] = Pending{static_cast<int>(entry / kCandidates),
+                                       static_cast<int>(entry % kCandidates),
+                                       c_u_[j],
+                                       c_v_[j],
+                                       c_cos_[j],
+                                       c_depth_[j],
+                                       c_tolerance_[j]};
+      window->Add(c_u_[j], c_v_[j]);
+    }
+    pending_faces_.resize(kept);
   }
 
   // Every vertex facing view k's camera (within the margin) and in front of it is splatted into
@@ -427,19 +464,9 @@ class ViewSweep {
 
   // The pending faces and vertices view k sees (not behind their cell's depth by more than
   // their tolerance): a face's cosine recorded in its slot, a vertex's weighted sample added.
-  void Record(int k, const ViewGeometry& g, const DepthCells& cells, float cell_mm,
-              std::vector<VertexSample>* samples) {
-    const float max_tan = in_.max_tan;
-    const float mean_edge_mm = in_.surface.mean_edge_mm;
-    auto visible = [&](const Eigen::Vector3f& x, const Pending& p) {
-      const float tan_angle =
-          std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - p.cos_angle * p.cos_angle)) /
-                                std::max(p.cos_angle, 1e-3f));
-      const float tolerance = 2.0f * mean_edge_mm + 4.0f * cell_mm * tan_angle;
-      return g.Depth(x) <= cells.At(p.u, p.v) + tolerance;
-    };
+  void Record(int k, const DepthCells& cells, std::vector<VertexSample>* samples) {
     for (const Pending& p : pending_faces_) {
-      if (!visible(in_.surface.centroid[p.index], p)) continue;
+      if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
       seen_.face_cos[static_cast<std::size_t>(p.index) * kCandidates + p.slot] = p.cos_angle;
     }
     const cv::Mat& image = in_.images[k];
@@ -455,6 +482,8 @@ class ViewSweep {
   // Scratch for a view's candidate vertices: positions and normals, then their PointTerms.
   std::vector<float> cx_, cy_, cz_, cnx_, cny_, cnz_, c_cos_, c_u_, c_v_, c_depth_, c_tolerance_,
       c_weight_;
+  // A view's candidate faces' own (unsmoothed) normals and their cosines to the camera.
+  std::vector<float> cfx_, cfy_, cfz_, c_own_cos_;
   std::vector<int> c_front_;
   std::vector<int> splat_cell_;  // scratch for the splats
   std::vector<float> splat_depth_;
