@@ -147,8 +147,12 @@ Charts GroupCharts(const std::vector<int>& label,
   Charts out;
   UnionFind sets(nf);
   for (int i = 0; i < nf; ++i) {
+    if (label[i] < 0) continue;
     for (int nb : neighbours[i]) {
-      if (nb >= 0 && label[nb] == label[i] && label[i] >= 0) sets.Unite(i, nb);
+      if (nb < 0 || label[nb] != label[i]) continue;
+      // A pair of faces each other's neighbours once, from the later face.
+      const std::array<int, 3>& back = neighbours[nb];
+      if (nb < i || (back[0] != i && back[1] != i && back[2] != i)) sets.Unite(i, nb);
     }
   }
   std::vector<int> chart_of(nf, -1);
