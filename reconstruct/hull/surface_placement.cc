@@ -449,24 +449,28 @@ class VisualHull::EdgePlacer {
     }
     // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
     // sample stay in the order of their indices).
+    // The blocks on all cores (each sorts its own range), a scratch per thread.
     std::size_t most = 0;
     for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
       most = std::max(most, start_[b + 1] - start_[b]);
     }
-    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
-    for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
-      const std::size_t count = start_[b + 1] - start_[b];
-      if (count < 2) continue;
-      std::uint64_t* from = &order_[start_[b]];
-      std::uint64_t* to = scratch.get();
-      for (const int shift : {32, 38}) {
-        std::array<std::uint32_t, 65> at{};
-        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
-        std::partial_sum(at.begin(), at.end(), at.begin());
-        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
-        std::swap(from, to);
+    tbb::enumerable_thread_specific<std::vector<std::uint64_t>> scratch(most);
+    ParallelChunks(0, start_.size() - 1, 64, [&](std::size_t lo, std::size_t hi) {
+      std::uint64_t* const own = scratch.local().data();
+      for (std::size_t b = lo; b < hi; ++b) {
+        const std::size_t count = start_[b + 1] - start_[b];
+        if (count < 2) continue;
+        std::uint64_t* from = &order_[start_[b]];
+        std::uint64_t* to = own;
+        for (const int shift : {32, 38}) {
+          std::array<std::uint32_t, 65> at{};
+          for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
+          std::partial_sum(at.begin(), at.end(), at.begin());
+          for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
+          std::swap(from, to);
+        }
       }
-    }
+    });
   }
 
   // From order_: items_ (in its order), samples_ and their centres, bricks (their samples, the

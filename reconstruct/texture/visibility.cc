@@ -385,16 +385,17 @@ class ViewSweep {
     }
     c_front_.resize(count);
     for (int j = 0; j < count; ++j) {
-      const auto i = static_cast<std::size_t>(in_.faces.entries[first + j] / kCandidates);
-      cx_[j] = s.centroid[i].x();
-      cy_[j] = s.centroid[i].y();
-      cz_[j] = s.centroid[i].z();
-      cnx_[j] = s.snx[i];
-      cny_[j] = s.sny[i];
-      cnz_[j] = s.snz[i];
-      cfx_[j] = s.fnx[i];
-      cfy_[j] = s.fny[i];
-      cfz_[j] = s.fnz[i];
+      const Surface::FacePoint& f =
+          s.face_point[static_cast<std::size_t>(in_.faces.entries[first + j] / kCandidates)];
+      cx_[j] = f.x;
+      cy_[j] = f.y;
+      cz_[j] = f.z;
+      cnx_[j] = f.sx;
+      cny_[j] = f.sy;
+      cnz_[j] = f.sz;
+      cfx_[j] = f.fx;
+      cfy_[j] = f.fy;
+      cfz_[j] = f.fz;
     }
     ComputePointTerms(
         g, in_.max_tan, 2.0f * s.mean_edge_mm, 4.0f * cell_mm, count,
