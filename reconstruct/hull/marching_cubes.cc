@@ -340,15 +340,17 @@ void PlaceVertices(const std::vector<GridEdge>& cut_edges, const Eigen::Vector3d
   if (t.size() != cut_edges.size()) {
     t.assign(cut_edges.size(), 0.5);
   }
-  mesh->vertices.reserve(cut_edges.size());
-  for (std::size_t v = 0; v < cut_edges.size(); ++v) {
-    const GridEdge& edge = cut_edges[v];
-    const double tv = std::clamp(t[v], 0.0, 1.0);
-    const Eigen::Vector3d position =
-        origin +
-        spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
-    mesh->vertices.push_back(position.cast<float>());
-  }
+  mesh->vertices.resize(cut_edges.size());
+  ParallelChunks(0, cut_edges.size(), 16384, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t v = lo; v < hi; ++v) {
+      const GridEdge& edge = cut_edges[v];
+      const double tv = std::clamp(t[v], 0.0, 1.0);
+      const Eigen::Vector3d position =
+          origin +
+          spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
+      mesh->vertices[v] = position.cast<float>();
+    }
+  });
 }
 
 }  // namespace

@@ -83,37 +83,38 @@ ViewRanking::ViewRanking(const std::vector<ViewGeometry>& geometry,
     used_y.push_back(direction_[k].y());
     used_z.push_back(direction_[k].z());
   }
-  std::vector<float> used_score(used_views.size());
-  for (int face = 0; face < 6; ++face) {
-    for (int bt = 0; bt < kBins; ++bt) {
-      for (int bs = 0; bs < kBins; ++bs) {
-        const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
-        const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
-        Eigen::Vector3f n;
-        const float sign = face & 1 ? -1.0f : 1.0f;
-        switch (face / 2) {
-          case 0:
-            n = Eigen::Vector3f(sign, a, b);
-            break;
-          case 1:
-            n = Eigen::Vector3f(a, sign, b);
-            break;
-          default:
-            n = Eigen::Vector3f(a, b, sign);
-            break;
-        }
-        n.normalize();
-        // The scores first (one loop the compiler vectorises; the products summed in the order
-        // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
-        for (std::size_t j = 0; j < used_views.size(); ++j) {
-          used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
-        }
-        Candidates c;
-        for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
-        bins_[(face * kBins + bt) * kBins + bs] = c;
+  // Each bin apart: the rows of bins on all cores.
+  ParallelFor(0, std::size_t{6} * kBins, [&](std::size_t row) {
+    const int face = static_cast<int>(row) / kBins;
+    const int bt = static_cast<int>(row) % kBins;
+    std::vector<float> used_score(used_views.size());
+    for (int bs = 0; bs < kBins; ++bs) {
+      const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
+      const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
+      Eigen::Vector3f n;
+      const float sign = face & 1 ? -1.0f : 1.0f;
+      switch (face / 2) {
+        case 0:
+          n = Eigen::Vector3f(sign, a, b);
+          break;
+        case 1:
+          n = Eigen::Vector3f(a, sign, b);
+          break;
+        default:
+          n = Eigen::Vector3f(a, b, sign);
+          break;
       }
+      n.normalize();
+      // The scores first (one loop the compiler vectorises; the products summed in the order
+      // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
+      for (std::size_t j = 0; j < used_views.size(); ++j) {
+        used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
+      }
+      Candidates c;
+      for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
+      bins_[(face * kBins + bt) * kBins + bs] = c;
     }
-  }
+  });
 }
 
 int ViewRanking::BinOf(float x, float y, float z) {
