@@ -181,21 +181,69 @@ Charts GroupCharts(const std::vector<int>& label,
   return out;
 }
 
-std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
-                             const std::vector<ViewGeometry>& geometry) {
-  std::vector<Rect> source(charts.count);
+ChartUvs ProjectCharts(const Mesh& mesh, const Charts& charts,
+                       const std::vector<ViewGeometry>& geometry) {
+  const int nv = static_cast<int>(mesh.vertices.size());
+  ChartUvs out;
+  out.source.resize(charts.count);
+  out.uv_faces.resize(mesh.faces.size());
+  // The charts on all cores. First each chart counts its vertices, then each projects its own
+  // into its place in that order (the same arrays on any number of cores). A thread marks the
+  // vertices its chart has reached with the chart's number (and, projecting, its uv's index).
+  struct Marks {
+    std::vector<int> chart, uv;
+  };
+  tbb::enumerable_thread_specific<Marks> marks([nv] {
+    return Marks{std::vector<int>(nv, -1), std::vector<int>(nv)};
+  });
+  std::vector<int>& start = out.start;
+  start.assign(charts.count + 1, 0);
   ParallelFor(0, charts.count, [&](std::size_t c) {
-    const ViewGeometry& g = geometry[charts.view[c]];
-    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    std::vector<int>& stamp = marks.local().chart;
+    int count = 0;
     for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
       for (int corner = 0; corner < 3; ++corner) {
         const int vi = mesh.faces[charts.faces[k]][corner];
-        float u = 0.0f, v = 0.0f;
-        if (!g.Project(mesh.vertices[vi], &u, &v)) continue;
-        u0 = std::min(u0, u);
-        u1 = std::max(u1, u);
-        v0 = std::min(v0, v);
-        v1 = std::max(v1, v);
+        if (stamp[vi] != static_cast<int>(c)) {
+          stamp[vi] = static_cast<int>(c);
+          ++count;
+        }
+      }
+    }
+    start[c + 1] = count;
+  });
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  out.u.resize(start.back());
+  out.v.resize(start.back());
+  out.in_front.resize(start.back());
+  ParallelFor(0, charts.count, [&](std::size_t c) {
+    Marks& local = marks.local();
+    // The second pass marks with -2 - c: never a mark of the first.
+    const int mark = -2 - static_cast<int>(c);
+    const ViewGeometry& g = geometry[charts.view[c]];
+    // The rectangle of the vertices that project (each once: the same minimum and maximum).
+    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    int next = start[c];
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      const int fi = charts.faces[k];
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh.faces[fi][corner];
+        if (local.chart[vi] != mark) {
+          local.chart[vi] = mark;
+          float u = 0.0f, v = 0.0f;
+          const bool in_front = g.Project(mesh.vertices[vi], &u, &v);
+          out.u[next] = u;
+          out.v[next] = v;
+          out.in_front[next] = in_front ? 1 : 0;
+          if (in_front) {
+            u0 = std::min(u0, u);
+            u1 = std::max(u1, u);
+            v0 = std::min(v0, v);
+            v1 = std::max(v1, v);
+          }
+          local.uv[vi] = next++;
+        }
+        out.uv_faces[fi][corner] = local.uv[vi];
       }
     }
     Rect r;
@@ -205,9 +253,9 @@ std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
     const int y1 = std::clamp(static_cast<int>(std::ceil(v1)) + kChartMarginPx, r.y, g.height - 1);
     r.w = x1 - r.x + 1;
     r.h = y1 - r.y + 1;
-    source[c] = r;
+    out.source[c] = r;
   });
-  return source;
+  return out;
 }
 
 Expected<Packing> PackCharts(const std::vector<Rect>& source, int max_side) {
@@ -263,76 +311,33 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
   return atlas;
 }
 
-void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-               const std::vector<ViewGeometry>& geometry, Mesh* mesh) {
-  const int nv = static_cast<int>(mesh->vertices.size());
-  const int nf = static_cast<int>(mesh->faces.size());
+void AssignUvs(const Charts& charts, ChartUvs&& projected, const Packing& packing, Mesh* mesh) {
   const std::vector<Rect>& placed = packing.placed;
+  const std::vector<Rect>& source = projected.source;
   const float inv_w = 1.0f / packing.width;
   const float inv_h = 1.0f / packing.height;
-  // The charts on all cores. One uv per (chart, vertex), chart after chart, each chart's in the
-  // order its faces first reach them: first each chart counts its vertices, then each writes its
-  // uvs from its place in that order (the same array on any number of cores). A thread marks the
-  // vertices its chart has reached with the chart's number (and, writing, its uv's index).
-  struct Marks {
-    std::vector<int> chart, uv;
-  };
-  tbb::enumerable_thread_specific<Marks> marks([nv] {
-    return Marks{std::vector<int>(nv, -1), {}};
-  });
-  std::vector<int> uv_start(charts.count + 1, 0);
-  ParallelFor(0, charts.count, [&](std::size_t c) {
-    std::vector<int>& stamp = marks.local().chart;
-    int count = 0;
-    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
-      for (int corner = 0; corner < 3; ++corner) {
-        const int vi = mesh->faces[charts.faces[k]][corner];
-        if (stamp[vi] != static_cast<int>(c)) {
-          stamp[vi] = static_cast<int>(c);
-          ++count;
-        }
-      }
-    }
-    uv_start[c + 1] = count;
-  });
-  std::partial_sum(uv_start.begin(), uv_start.end(), uv_start.begin());
   const int unseen = charts.count;
   const bool has_unseen = charts.start[unseen + 1] > charts.start[unseen];
+  const std::vector<int>& uv_start = projected.start;
   std::vector<Eigen::Vector2f> uvs(uv_start.back() + (has_unseen ? 1 : 0));
-  std::vector<Eigen::Vector3i> uv_faces(nf);
+  // Each chart's uvs from its vertices' pixels, on all cores.
   ParallelFor(0, charts.count, [&](std::size_t c) {
-    Marks& local = marks.local();
-    // The second pass marks with -2 - c: never a mark of the first.
-    const int mark = -2 - static_cast<int>(c);
-    local.uv.resize(nv);
-    const ViewGeometry& g = geometry[charts.view[c]];
     const Rect& s = source[c];
     const Rect& d = placed[c];
     const float sx = static_cast<float>(d.w) / s.w;
     const float sy = static_cast<float>(d.h) / s.h;
-    int next = uv_start[c];
-    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
-      const int fi = charts.faces[k];
-      for (int corner = 0; corner < 3; ++corner) {
-        const int vi = mesh->faces[fi][corner];
-        if (local.chart[vi] != mark) {
-          local.chart[vi] = mark;
-          float u = 0.0f, v = 0.0f;
-          if (!g.Project(mesh->vertices[vi], &u, &v)) {
-            u = static_cast<float>(s.x);
-            v = static_cast<float>(s.y);
-          }
-          // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
-          const float tx = d.x + (u - s.x + 0.5f) * sx;
-          const float ty = d.y + (v - s.y + 0.5f) * sy;
-          local.uv[vi] = next;
-          uvs[next++] = Eigen::Vector2f(std::clamp(tx * inv_w, 0.0f, 1.0f),
-                                        std::clamp(ty * inv_h, 0.0f, 1.0f));
-        }
-        uv_faces[fi][corner] = local.uv[vi];
-      }
+    for (int i = uv_start[c]; i < uv_start[c + 1]; ++i) {
+      // A vertex behind the camera maps to the rectangle's corner.
+      const float u = projected.in_front[i] ? projected.u[i] : static_cast<float>(s.x);
+      const float v = projected.in_front[i] ? projected.v[i] : static_cast<float>(s.y);
+      // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
+      const float tx = d.x + (u - s.x + 0.5f) * sx;
+      const float ty = d.y + (v - s.y + 0.5f) * sy;
+      uvs[i] =
+          Eigen::Vector2f(std::clamp(tx * inv_w, 0.0f, 1.0f), std::clamp(ty * inv_h, 0.0f, 1.0f));
     }
   });
+  std::vector<Eigen::Vector3i> uv_faces = std::move(projected.uv_faces);
   if (has_unseen) {
     const int unseen_uv = uv_start.back();
     uvs[unseen_uv] = Eigen::Vector2f((placed[unseen].x + 0.5f * kUnseenPatch) * inv_w,

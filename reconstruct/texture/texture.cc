@@ -13,8 +13,8 @@ namespace {
 
 using texture_internal::AssignUvs;
 using texture_internal::Candidates;
-using texture_internal::ChartRects;
 using texture_internal::Charts;
+using texture_internal::ChartUvs;
 using texture_internal::ClusterVertices;
 using texture_internal::DrawAtlas;
 using texture_internal::Float4;
@@ -26,6 +26,7 @@ using texture_internal::MeasureSurface;
 using texture_internal::PackCharts;
 using texture_internal::Packing;
 using texture_internal::PerView;
+using texture_internal::ProjectCharts;
 using texture_internal::Rect;
 using texture_internal::Sightings;
 using texture_internal::Surface;
@@ -142,14 +143,15 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
                                     surface.neighbours);
   stats.unseen_faces = charts.unseen_faces;
   stats.charts = charts.count;
-  const std::vector<Rect> source = ChartRects(*mesh, charts, geometry);
+  ChartUvs projected = ProjectCharts(*mesh, charts, geometry);
+  const std::vector<Rect> source = projected.source;
   Expected<Packing> packing = PackCharts(source, options.texture_size_px);
   if (!packing) {
     return std::unexpected(packing.error());
   }
   stats.atlas_scale = packing->scale;
   cv::Mat atlas = DrawAtlas(charts, source, *packing, images);
-  AssignUvs(charts, source, *packing, geometry, mesh);
+  AssignUvs(charts, std::move(projected), *packing, mesh);
   mesh->texture = atlas;
   return stats;
 }

@@ -293,9 +293,17 @@ Charts GroupCharts(const std::vector<int>& label,
 struct Rect {
   int x = 0, y = 0, w = 0, h = 0;
 };
-// Each chart's rectangle in its view (pixels, margin included, clamped to the image).
-std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
-                             const std::vector<ViewGeometry>& geometry);
+// The charts in their views: each chart's vertices (one uv per (chart, vertex), chart after
+// chart, each chart's in the order its faces first reach them) projected once.
+struct ChartUvs {
+  std::vector<Rect> source;  // per chart: its rectangle (pixels, margin included, clamped)
+  std::vector<int> start;    // count + 1: chart c's uvs [start[c], start[c + 1])
+  std::vector<float> u, v;   // per uv: its vertex's pixel in the chart's view
+  std::vector<std::uint8_t> in_front;     // per uv: whether it projects (else u, v unused)
+  std::vector<Eigen::Vector3i> uv_faces;  // per face (of the charts): its corners' uvs
+};
+ChartUvs ProjectCharts(const Mesh& mesh, const Charts& charts,
+                       const std::vector<ViewGeometry>& geometry);
 
 // The charts' rectangles placed in the atlas: placed[c] for chart c, placed[charts] for the
 // unseen patch; `scale` texels per image pixel.
@@ -315,7 +323,6 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
 
 // Sets mesh->uvs and uv_faces: one uv per (chart, vertex), the projection into the chart's view
 // mapped into its placed rectangle, and the unseen patch's centre for the unseen faces.
-void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-               const std::vector<ViewGeometry>& geometry, Mesh* mesh);
+void AssignUvs(const Charts& charts, ChartUvs&& projected, const Packing& packing, Mesh* mesh);
 
 }  // namespace revolve::reconstruct::texture_internal
