@@ -14,6 +14,7 @@ namespace revolve::reconstruct::texture_internal {
 namespace {
 
 constexpr std::size_t kFacesPerTask = 8192;
+constexpr std::size_t kFacesPerChunk = 32768;  // GroupCharts' union-find
 
 // Shelf packing of `sizes` (w, h) into a strip `width` wide; returns the height used, or -1
 // when a rectangle is wider than the strip.
@@ -145,28 +146,54 @@ Charts GroupCharts(const std::vector<int>& label,
                    const std::vector<std::array<int, 3>>& neighbours) {
   const int nf = static_cast<int>(label.size());
   Charts out;
+  // The union-find in fixed chunks of faces on all cores: a chunk joins the pairs of its own
+  // faces (its sets stay inside it, so the chunks touch apart), then the pairs across chunks are
+  // joined in order on one thread, and each face's set read off (without writing) on all cores.
+  // The sets do not depend on the order of the joins; each is named by its smallest face.
   UnionFind sets(nf);
-  for (int i = 0; i < nf; ++i) {
-    if (label[i] < 0) continue;
-    for (int nb : neighbours[i]) {
-      if (nb < 0 || label[nb] != label[i]) continue;
-      // A pair of faces each other's neighbours once, from the later face.
-      const std::array<int, 3>& back = neighbours[nb];
-      if (nb < i || (back[0] != i && back[1] != i && back[2] != i)) sets.Unite(i, nb);
+  const std::size_t chunks = (static_cast<std::size_t>(nf) + kFacesPerChunk - 1) / kFacesPerChunk;
+  std::vector<std::vector<std::pair<int, int>>> across(chunks);
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    const int lo = static_cast<int>(chunk * kFacesPerChunk);
+    const int hi = std::min(nf, lo + static_cast<int>(kFacesPerChunk));
+    for (int i = lo; i < hi; ++i) {
+      if (label[i] < 0) continue;
+      for (int nb : neighbours[i]) {
+        if (nb < 0 || label[nb] != label[i]) continue;
+        // A pair of faces each other's neighbours once, from the later face.
+        const std::array<int, 3>& back = neighbours[nb];
+        if (nb > i && (back[0] == i || back[1] == i || back[2] == i)) continue;
+        if (nb >= lo && nb < hi) {
+          sets.Unite(i, nb);
+        } else {
+          across[chunk].emplace_back(i, nb);
+        }
+      }
     }
+  });
+  for (const auto& pairs : across) {
+    for (const auto& [a, b] : pairs) sets.Unite(a, b);
   }
+  std::vector<int> root(nf);
+  ParallelChunks(0, nf, kFacesPerChunk, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) {
+      int r = static_cast<int>(i);
+      while (sets.parent[r] != r) r = sets.parent[r];
+      root[i] = r;
+    }
+  });
   std::vector<int> chart_of(nf, -1);
   for (int i = 0; i < nf; ++i) {
     if (label[i] < 0) {
       ++out.unseen_faces;
       continue;
     }
-    const int root = sets.Find(i);
-    if (chart_of[root] < 0) {
-      chart_of[root] = static_cast<int>(out.view.size());
+    const int root_i = root[i];
+    if (chart_of[root_i] < 0) {
+      chart_of[root_i] = static_cast<int>(out.view.size());
       out.view.push_back(label[i]);
     }
-    chart_of[i] = chart_of[root];
+    chart_of[i] = chart_of[root_i];
   }
   const int charts = static_cast<int>(out.view.size());
   out.count = charts;

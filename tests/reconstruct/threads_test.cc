@@ -348,13 +348,19 @@ TEST(Threads, LabelsLookingAgainOnlyNextToChangesEqualEveryPass) {
 }
 
 TEST(Threads, ChartsAreTheConnectedFacesOfAView) {
-  RandomLabelling in = MakeRandomLabelling(60, 80, 4);
-  // A few one-way neighbours (a face naming one that does not name it back) must join too.
+  // 60000 faces: GroupCharts' union-find works in chunks of 32768, and joins across them after.
+  RandomLabelling in = MakeRandomLabelling(200, 150, 4);
+  // A few one-way neighbours (a face naming one that does not name it back) must join too, in a
+  // chunk and across chunks.
   in.neighbours[100][0] = 5000;
   in.neighbours[7000][1] = 30;
+  in.neighbours[40000][0] = 20;
+  in.neighbours[90][1] = 50000;
   std::vector<int> label = texture_internal::LabelFaces(in.face_cos, in.candidates, in.neighbours);
   label[100] = label[5000] = 2;
   label[30] = label[7000] = 1;
+  label[40000] = label[20] = 3;
+  label[90] = label[50000] = 0;
   const int nf = static_cast<int>(label.size());
   // Every pair, both ways: the reference sets.
   UnionFind sets(nf);
