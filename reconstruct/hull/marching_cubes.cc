@@ -232,13 +232,22 @@ const CaseTable& Table() {
 
 }  // namespace
 
-int KeepLargestComponent(Mesh* mesh) {
-  const int vertex_count = static_cast<int>(mesh->vertices.size());
-  if (mesh->faces.empty()) {
-    return 0;
-  }
-  UnionFind sets(vertex_count);
-  for (const Eigen::Vector3i& f : mesh->faces) {
+namespace {
+
+// The connected components (through shared vertices) of `faces` over `vertex_count` vertices:
+// the sets, how many there are, and the root of the one with the most triangles (ties: the first
+// found); one component needs no more.
+struct Components {
+  UnionFind sets{0};
+  int count = 0;
+  int largest_root = -1;
+};
+Components FindComponents(const std::vector<Eigen::Vector3i>& faces, int vertex_count) {
+  Components out;
+  if (faces.empty()) return out;
+  UnionFind& sets = out.sets;
+  sets = UnionFind(vertex_count);
+  for (const Eigen::Vector3i& f : faces) {
     sets.Unite(f[0], f[1]);
     sets.Unite(f[1], f[2]);
   }
@@ -246,27 +255,33 @@ int KeepLargestComponent(Mesh* mesh) {
   int roots = 0;
   for (int v = 0; v < vertex_count && roots < 2; ++v) roots += sets.parent[v] == v ? 1 : 0;
   if (roots == 1) {
-    return 1;
+    out.count = 1;
+    return out;
   }
   std::vector<int> triangles_of_root(vertex_count, 0);
-  for (const Eigen::Vector3i& f : mesh->faces) {
+  for (const Eigen::Vector3i& f : faces) {
     ++triangles_of_root[sets.Find(f[0])];
   }
-  int components = 0;
-  int best_root = -1;
   for (int v = 0; v < vertex_count; ++v) {
     if (triangles_of_root[v] == 0) {
       continue;
     }
-    ++components;
-    if (best_root < 0 || triangles_of_root[v] > triangles_of_root[best_root]) {
-      best_root = v;
+    ++out.count;
+    if (out.largest_root < 0 || triangles_of_root[v] > triangles_of_root[out.largest_root]) {
+      out.largest_root = v;
     }
   }
-  if (components <= 1) {
-    return components;
-  }
+  return out;
+}
 
+// KeepLargestComponent with the mesh's components found.
+int KeepComponent(Components& found, Mesh* mesh) {
+  if (found.count <= 1) {
+    return found.count;
+  }
+  const int vertex_count = static_cast<int>(mesh->vertices.size());
+  const int best_root = found.largest_root;
+  UnionFind& sets = found.sets;
   std::vector<int> new_index(vertex_count, -1);
   Mesh kept;
   const bool colors = mesh->HasColors();
@@ -300,7 +315,14 @@ int KeepLargestComponent(Mesh* mesh) {
     kept.faces.push_back(g);
   }
   *mesh = std::move(kept);
-  return components;
+  return found.count;
+}
+
+}  // namespace
+
+int KeepLargestComponent(Mesh* mesh) {
+  Components found = FindComponents(mesh->faces, static_cast<int>(mesh->vertices.size()));
+  return KeepComponent(found, mesh);
 }
 
 namespace {
@@ -340,15 +362,17 @@ void PlaceVertices(const std::vector<GridEdge>& cut_edges, const Eigen::Vector3d
   if (t.size() != cut_edges.size()) {
     t.assign(cut_edges.size(), 0.5);
   }
-  mesh->vertices.reserve(cut_edges.size());
-  for (std::size_t v = 0; v < cut_edges.size(); ++v) {
-    const GridEdge& edge = cut_edges[v];
-    const double tv = std::clamp(t[v], 0.0, 1.0);
-    const Eigen::Vector3d position =
-        origin +
-        spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
-    mesh->vertices.push_back(position.cast<float>());
-  }
+  mesh->vertices.resize(cut_edges.size());
+  ParallelChunks(0, cut_edges.size(), 16384, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t v = lo; v < hi; ++v) {
+      const GridEdge& edge = cut_edges[v];
+      const double tv = std::clamp(t[v], 0.0, 1.0);
+      const Eigen::Vector3d position =
+          origin +
+          spacing * (edge.inside.cast<double>() + tv * (edge.outside - edge.inside).cast<double>());
+      mesh->vertices[v] = position.cast<float>();
+    }
+  });
 }
 
 }  // namespace
@@ -591,9 +615,16 @@ Mesh MarchingCubes(const BitVolume& field, const Eigen::Vector3d& origin, double
     return MarchingCubes(field, origin, spacing, crossings, one);
   }
   slabs.clear();
-  PlaceVertices(cut_edges, origin, spacing, crossings, &mesh);
+  // The components (from the faces alone) are found while the vertices are placed.
+  Components components;
+  ParallelInvoke([&] { PlaceVertices(cut_edges, origin, spacing, crossings, &mesh); },
+                 [&] {
+                   if (options.keep_largest_component) {
+                     components = FindComponents(mesh.faces, static_cast<int>(cut_edges.size()));
+                   }
+                 });
   if (options.keep_largest_component) {
-    KeepLargestComponent(&mesh);
+    KeepComponent(components, &mesh);
   }
   return mesh;
 }

@@ -16,6 +16,7 @@
 
 #include "reconstruct/hull/hull_internal.h"
 #include "reconstruct/hull/marching_cubes.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 
@@ -30,7 +31,9 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
         std::ceil((*options.clip_below_z_mm - grid_.origin_mm.z()) / grid_.voxel_mm - 0.5);
     k_min = static_cast<int>(std::clamp(k, 0.0, static_cast<double>(grid_.dims.z())));
   }
-  for (int z = 0; z < brick_dims_.z(); ++z) {
+  // Each layer of bricks writes its own rows of the field: on all cores.
+  ParallelFor(0, static_cast<std::size_t>(brick_dims_.z()), [&](std::size_t layer) {
+    const int z = static_cast<int>(layer);
     for (int y = 0; y < brick_dims_.y(); ++y) {
       for (int x = 0; x < brick_dims_.x(); ++x) {
         const std::uint64_t word = bricks_[BrickIndex(Eigen::Vector3i(x, y, z))];
@@ -53,7 +56,7 @@ Mesh VisualHull::ExtractSurface(const HullSurfaceOptions& options) const {
         }
       }
     }
-  }
+  });
   EdgeCrossings crossings;
   if (options.sub_voxel) {
     crossings = [this, &options](const std::vector<GridEdge>& edges) {

@@ -427,13 +427,37 @@ class VisualHull::EdgePlacer {
   // sorted by local key within each block (a few hundred edges). What it needs: the axis (bits
   // 0-1), whether the step is positive (bit 2) and whether the edge leaves the grid (bit 3).
   void SortByBlock(const std::vector<GridEdge>& edges) {
-    start_.assign(static_cast<std::size_t>(block_dims_.prod()) + 1, 0);
-    for (const GridEdge& edge : edges) ++start_[BlockOf(edge.inside.cwiseMax(0)) + 1];
-    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    // A counting sort on all cores, in fixed chunks of edges: each chunk counts its edges per
+    // block, then writes them where the chunks before it end (stable, as one pass would be).
+    constexpr std::size_t kEdgesPerChunk = 32768;
+    const std::size_t blocks = static_cast<std::size_t>(block_dims_.prod());
+    const std::size_t chunks = (n_ + kEdgesPerChunk - 1) / kEdgesPerChunk;
+    std::vector<std::uint32_t> block_of(n_);
+    std::vector<std::size_t> counts(chunks * blocks, 0);  // chunk-major
+    ParallelFor(0, chunks, [&](std::size_t chunk) {
+      std::size_t* own = &counts[chunk * blocks];
+      for (std::size_t e = chunk * kEdgesPerChunk; e < std::min(n_, (chunk + 1) * kEdgesPerChunk);
+           ++e) {
+        block_of[e] = BlockOf(edges[e].inside.cwiseMax(0));
+        ++own[block_of[e]];
+      }
+    });
+    start_.assign(blocks + 1, 0);
+    std::size_t next = 0;
+    for (std::size_t b = 0; b < blocks; ++b) {
+      start_[b] = next;
+      for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+        const std::size_t c = counts[chunk * blocks + b];
+        counts[chunk * blocks + b] = next;
+        next += c;
+      }
+    }
+    start_[blocks] = next;
     order_ = std::make_unique_for_overwrite<std::uint64_t[]>(n_);
-    {
-      std::vector<std::size_t> fill(start_.begin(), start_.end() - 1);
-      for (std::size_t e = 0; e < n_; ++e) {
+    ParallelFor(0, chunks, [&](std::size_t chunk) {
+      std::size_t* fill = &counts[chunk * blocks];
+      for (std::size_t e = chunk * kEdgesPerChunk; e < std::min(n_, (chunk + 1) * kEdgesPerChunk);
+           ++e) {
         const GridEdge& edge = edges[e];
         const Eigen::Vector3i voxel = edge.inside.cwiseMax(0);
         const Eigen::Vector3i step = edge.outside - edge.inside;
@@ -444,29 +468,33 @@ class VisualHull::EdgePlacer {
         const std::uint64_t need = static_cast<std::uint64_t>(axis) |
                                    static_cast<std::uint64_t>(step[axis] > 0) << 2 |
                                    static_cast<std::uint64_t>(leaves) << 3;
-        order_[fill[BlockOf(voxel)]++] = (need << 12 | LocalKey(voxel)) << 32 | e;
+        order_[fill[block_of[e]]++] = (need << 12 | LocalKey(voxel)) << 32 | e;
       }
-    }
+    });
     // Within a block: a radix sort on the local key, 6 bits at a time (stable: the edges of a
     // sample stay in the order of their indices).
+    // The blocks on all cores (each sorts its own range), a scratch per thread.
     std::size_t most = 0;
     for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
       most = std::max(most, start_[b + 1] - start_[b]);
     }
-    const auto scratch = std::make_unique_for_overwrite<std::uint64_t[]>(most);
-    for (std::size_t b = 0; b + 1 < start_.size(); ++b) {
-      const std::size_t count = start_[b + 1] - start_[b];
-      if (count < 2) continue;
-      std::uint64_t* from = &order_[start_[b]];
-      std::uint64_t* to = scratch.get();
-      for (const int shift : {32, 38}) {
-        std::array<std::uint32_t, 65> at{};
-        for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
-        std::partial_sum(at.begin(), at.end(), at.begin());
-        for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
-        std::swap(from, to);
+    tbb::enumerable_thread_specific<std::vector<std::uint64_t>> scratch(most);
+    ParallelChunks(0, start_.size() - 1, 64, [&](std::size_t lo, std::size_t hi) {
+      std::uint64_t* const own = scratch.local().data();
+      for (std::size_t b = lo; b < hi; ++b) {
+        const std::size_t count = start_[b + 1] - start_[b];
+        if (count < 2) continue;
+        std::uint64_t* from = &order_[start_[b]];
+        std::uint64_t* to = own;
+        for (const int shift : {32, 38}) {
+          std::array<std::uint32_t, 65> at{};
+          for (std::size_t i = 0; i < count; ++i) ++at[((from[i] >> shift) & 63) + 1];
+          std::partial_sum(at.begin(), at.end(), at.begin());
+          for (std::size_t i = 0; i < count; ++i) to[at[(from[i] >> shift) & 63]++] = from[i];
+          std::swap(from, to);
+        }
       }
-    }
+    });
   }
 
   // From order_: items_ (in its order), samples_ and their centres, bricks (their samples, the

@@ -14,6 +14,7 @@ namespace revolve::reconstruct::texture_internal {
 namespace {
 
 constexpr std::size_t kFacesPerTask = 8192;
+constexpr std::size_t kFacesPerChunk = 32768;  // GroupCharts' union-find
 
 // Shelf packing of `sizes` (w, h) into a strip `width` wide; returns the height used, or -1
 // when a rectangle is wider than the strip.
@@ -41,6 +42,34 @@ int PackShelves(const std::vector<Rect>& sizes, int width, std::vector<Rect>* pl
 
 }  // namespace
 
+namespace {
+
+// The label ICM gives face i from the labels of its neighbours (`label`): the visible candidate
+// maximising its cosine plus kNeighbourBonus per edge-neighbour with the same view; `keep` when
+// none is visible.
+inline int IcmLabel(const std::vector<float>& face_cos, const Candidates& candidates,
+                    const std::array<int, 3>& around, const std::vector<int>& label, std::size_t i,
+                    int keep) {
+  int out = keep;
+  float best = -std::numeric_limits<float>::infinity();
+  for (int s = 0; s < kCandidates; ++s) {
+    const float c = face_cos[i * kCandidates + s];
+    if (c <= -2.0f) continue;
+    const int view = candidates.view[s];
+    float score = c;
+    for (int nb : around) {
+      if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
+    }
+    if (score > best) {
+      best = score;
+      out = view;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<int> LabelFaces(const std::vector<float>& face_cos,
                             const std::vector<Candidates>& face_candidates,
                             const std::vector<std::array<int, 3>>& neighbours) {
@@ -62,29 +91,53 @@ std::vector<int> LabelFaces(const std::vector<float>& face_cos,
   // Iterated conditional modes: each face takes the visible candidate maximising its cosine plus
   // kNeighbourBonus per edge-neighbour with the same view, so the small islands and ragged
   // borders that nearly equal views leave behind merge into their surroundings. Each pass reads
-  // only the labels of the one before: the faces on all cores.
+  // only the labels of the one before. A face's new label depends on its neighbours' labels
+  // only (a face without a visible candidate keeps its -1), so after the first pass (every face,
+  // on all cores) a pass need only look again at the faces next to one the pass before changed:
+  // the others would choose as they did.
+  if (kSmoothingPasses == 0) return label;
   std::vector<int> next(nf);
-  for (int pass = 0; pass < kSmoothingPasses; ++pass) {
-    ParallelChunks(0, nf, kFacesPerTask, [&](std::size_t lo, std::size_t hi) {
-      for (std::size_t i = lo; i < hi; ++i) {
-        next[i] = label[i];
-        float best = -std::numeric_limits<float>::infinity();
-        for (int s = 0; s < kCandidates; ++s) {
-          const float c = face_cos[i * kCandidates + s];
-          if (c <= -2.0f) continue;
-          const int view = face_candidates[i].view[s];
-          float score = c;
-          for (int nb : neighbours[i]) {
-            if (nb >= 0 && label[nb] == view) score += kNeighbourBonus;
-          }
-          if (score > best) {
-            best = score;
-            next[i] = view;
-          }
+  const std::size_t chunks = (static_cast<std::size_t>(nf) + kFacesPerTask - 1) / kFacesPerTask;
+  std::vector<std::vector<int>> changed_in(chunks);  // per chunk, in face order
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    const std::size_t hi = std::min<std::size_t>(nf, (chunk + 1) * kFacesPerTask);
+    for (std::size_t i = chunk * kFacesPerTask; i < hi; ++i) {
+      next[i] = IcmLabel(face_cos, face_candidates[i], neighbours[i], label, i, label[i]);
+      if (next[i] != label[i]) changed_in[chunk].push_back(static_cast<int>(i));
+    }
+  });
+  label.swap(next);
+  std::vector<int> changed;
+  for (const std::vector<int>& part : changed_in)
+    changed.insert(changed.end(), part.begin(), part.end());
+  // Later passes: the faces next to a change (each once), their new labels from the labels of
+  // the pass before, then applied.
+  std::vector<std::uint8_t> listed(nf, 0);
+  std::vector<int> dirty;
+  std::vector<int> relabel;
+  for (int pass = 1; pass < kSmoothingPasses && !changed.empty(); ++pass) {
+    dirty.clear();
+    for (const int f : changed) {
+      for (const int nb : neighbours[f]) {
+        if (nb >= 0 && !listed[nb]) {
+          listed[nb] = 1;
+          dirty.push_back(nb);
         }
       }
+    }
+    relabel.resize(dirty.size());
+    ParallelChunks(0, dirty.size(), kFacesPerTask / 4, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t d = lo; d < hi; ++d) {
+        const auto i = static_cast<std::size_t>(dirty[d]);
+        relabel[d] = IcmLabel(face_cos, face_candidates[i], neighbours[i], label, i, label[i]);
+      }
     });
-    label.swap(next);
+    changed.clear();
+    for (std::size_t d = 0; d < dirty.size(); ++d) {
+      listed[dirty[d]] = 0;
+      if (relabel[d] != label[dirty[d]]) changed.push_back(dirty[d]);
+    }
+    for (std::size_t d = 0; d < dirty.size(); ++d) label[dirty[d]] = relabel[d];
   }
   return label;
 }
@@ -93,24 +146,54 @@ Charts GroupCharts(const std::vector<int>& label,
                    const std::vector<std::array<int, 3>>& neighbours) {
   const int nf = static_cast<int>(label.size());
   Charts out;
+  // The union-find in fixed chunks of faces on all cores: a chunk joins the pairs of its own
+  // faces (its sets stay inside it, so the chunks touch apart), then the pairs across chunks are
+  // joined in order on one thread, and each face's set read off (without writing) on all cores.
+  // The sets do not depend on the order of the joins; each is named by its smallest face.
   UnionFind sets(nf);
-  for (int i = 0; i < nf; ++i) {
-    for (int nb : neighbours[i]) {
-      if (nb >= 0 && label[nb] == label[i] && label[i] >= 0) sets.Unite(i, nb);
+  const std::size_t chunks = (static_cast<std::size_t>(nf) + kFacesPerChunk - 1) / kFacesPerChunk;
+  std::vector<std::vector<std::pair<int, int>>> across(chunks);
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    const int lo = static_cast<int>(chunk * kFacesPerChunk);
+    const int hi = std::min(nf, lo + static_cast<int>(kFacesPerChunk));
+    for (int i = lo; i < hi; ++i) {
+      if (label[i] < 0) continue;
+      for (int nb : neighbours[i]) {
+        if (nb < 0 || label[nb] != label[i]) continue;
+        // A pair of faces each other's neighbours once, from the later face.
+        const std::array<int, 3>& back = neighbours[nb];
+        if (nb > i && (back[0] == i || back[1] == i || back[2] == i)) continue;
+        if (nb >= lo && nb < hi) {
+          sets.Unite(i, nb);
+        } else {
+          across[chunk].emplace_back(i, nb);
+        }
+      }
     }
+  });
+  for (const auto& pairs : across) {
+    for (const auto& [a, b] : pairs) sets.Unite(a, b);
   }
+  std::vector<int> root(nf);
+  ParallelChunks(0, nf, kFacesPerChunk, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) {
+      int r = static_cast<int>(i);
+      while (sets.parent[r] != r) r = sets.parent[r];
+      root[i] = r;
+    }
+  });
   std::vector<int> chart_of(nf, -1);
   for (int i = 0; i < nf; ++i) {
     if (label[i] < 0) {
       ++out.unseen_faces;
       continue;
     }
-    const int root = sets.Find(i);
-    if (chart_of[root] < 0) {
-      chart_of[root] = static_cast<int>(out.view.size());
+    const int root_i = root[i];
+    if (chart_of[root_i] < 0) {
+      chart_of[root_i] = static_cast<int>(out.view.size());
       out.view.push_back(label[i]);
     }
-    chart_of[i] = chart_of[root];
+    chart_of[i] = chart_of[root_i];
   }
   const int charts = static_cast<int>(out.view.size());
   out.count = charts;
@@ -125,21 +208,69 @@ Charts GroupCharts(const std::vector<int>& label,
   return out;
 }
 
-std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
-                             const std::vector<ViewGeometry>& geometry) {
-  std::vector<Rect> source(charts.count);
+ChartUvs ProjectCharts(const Mesh& mesh, const Charts& charts,
+                       const std::vector<ViewGeometry>& geometry) {
+  const int nv = static_cast<int>(mesh.vertices.size());
+  ChartUvs out;
+  out.source.resize(charts.count);
+  out.uv_faces.resize(mesh.faces.size());
+  // The charts on all cores. First each chart counts its vertices, then each projects its own
+  // into its place in that order (the same arrays on any number of cores). A thread marks the
+  // vertices its chart has reached with the chart's number (and, projecting, its uv's index).
+  struct Marks {
+    std::vector<int> chart, uv;
+  };
+  tbb::enumerable_thread_specific<Marks> marks([nv] {
+    return Marks{std::vector<int>(nv, -1), std::vector<int>(nv)};
+  });
+  std::vector<int>& start = out.start;
+  start.assign(charts.count + 1, 0);
   ParallelFor(0, charts.count, [&](std::size_t c) {
-    const ViewGeometry& g = geometry[charts.view[c]];
-    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    std::vector<int>& stamp = marks.local().chart;
+    int count = 0;
     for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
       for (int corner = 0; corner < 3; ++corner) {
         const int vi = mesh.faces[charts.faces[k]][corner];
-        float u = 0.0f, v = 0.0f;
-        if (!g.Project(mesh.vertices[vi], &u, &v)) continue;
-        u0 = std::min(u0, u);
-        u1 = std::max(u1, u);
-        v0 = std::min(v0, v);
-        v1 = std::max(v1, v);
+        if (stamp[vi] != static_cast<int>(c)) {
+          stamp[vi] = static_cast<int>(c);
+          ++count;
+        }
+      }
+    }
+    start[c + 1] = count;
+  });
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  out.u.resize(start.back());
+  out.v.resize(start.back());
+  out.in_front.resize(start.back());
+  ParallelFor(0, charts.count, [&](std::size_t c) {
+    Marks& local = marks.local();
+    // The second pass marks with -2 - c: never a mark of the first.
+    const int mark = -2 - static_cast<int>(c);
+    const ViewGeometry& g = geometry[charts.view[c]];
+    // The rectangle of the vertices that project (each once: the same minimum and maximum).
+    float u0 = std::numeric_limits<float>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    int next = start[c];
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      const int fi = charts.faces[k];
+      for (int corner = 0; corner < 3; ++corner) {
+        const int vi = mesh.faces[fi][corner];
+        if (local.chart[vi] != mark) {
+          local.chart[vi] = mark;
+          float u = 0.0f, v = 0.0f;
+          const bool in_front = g.Project(mesh.vertices[vi], &u, &v);
+          out.u[next] = u;
+          out.v[next] = v;
+          out.in_front[next] = in_front ? 1 : 0;
+          if (in_front) {
+            u0 = std::min(u0, u);
+            u1 = std::max(u1, u);
+            v0 = std::min(v0, v);
+            v1 = std::max(v1, v);
+          }
+          local.uv[vi] = next++;
+        }
+        out.uv_faces[fi][corner] = local.uv[vi];
       }
     }
     Rect r;
@@ -149,9 +280,9 @@ std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
     const int y1 = std::clamp(static_cast<int>(std::ceil(v1)) + kChartMarginPx, r.y, g.height - 1);
     r.w = x1 - r.x + 1;
     r.h = y1 - r.y + 1;
-    source[c] = r;
+    out.source[c] = r;
   });
-  return source;
+  return out;
 }
 
 Expected<Packing> PackCharts(const std::vector<Rect>& source, int max_side) {
@@ -207,76 +338,33 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
   return atlas;
 }
 
-void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-               const std::vector<ViewGeometry>& geometry, Mesh* mesh) {
-  const int nv = static_cast<int>(mesh->vertices.size());
-  const int nf = static_cast<int>(mesh->faces.size());
+void AssignUvs(const Charts& charts, ChartUvs&& projected, const Packing& packing, Mesh* mesh) {
   const std::vector<Rect>& placed = packing.placed;
+  const std::vector<Rect>& source = projected.source;
   const float inv_w = 1.0f / packing.width;
   const float inv_h = 1.0f / packing.height;
-  // The charts on all cores. One uv per (chart, vertex), chart after chart, each chart's in the
-  // order its faces first reach them: first each chart counts its vertices, then each writes its
-  // uvs from its place in that order (the same array on any number of cores). A thread marks the
-  // vertices its chart has reached with the chart's number (and, writing, its uv's index).
-  struct Marks {
-    std::vector<int> chart, uv;
-  };
-  tbb::enumerable_thread_specific<Marks> marks([nv] {
-    return Marks{std::vector<int>(nv, -1), {}};
-  });
-  std::vector<int> uv_start(charts.count + 1, 0);
-  ParallelFor(0, charts.count, [&](std::size_t c) {
-    std::vector<int>& stamp = marks.local().chart;
-    int count = 0;
-    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
-      for (int corner = 0; corner < 3; ++corner) {
-        const int vi = mesh->faces[charts.faces[k]][corner];
-        if (stamp[vi] != static_cast<int>(c)) {
-          stamp[vi] = static_cast<int>(c);
-          ++count;
-        }
-      }
-    }
-    uv_start[c + 1] = count;
-  });
-  std::partial_sum(uv_start.begin(), uv_start.end(), uv_start.begin());
   const int unseen = charts.count;
   const bool has_unseen = charts.start[unseen + 1] > charts.start[unseen];
+  const std::vector<int>& uv_start = projected.start;
   std::vector<Eigen::Vector2f> uvs(uv_start.back() + (has_unseen ? 1 : 0));
-  std::vector<Eigen::Vector3i> uv_faces(nf);
+  // Each chart's uvs from its vertices' pixels, on all cores.
   ParallelFor(0, charts.count, [&](std::size_t c) {
-    Marks& local = marks.local();
-    // The second pass marks with -2 - c: never a mark of the first.
-    const int mark = -2 - static_cast<int>(c);
-    local.uv.resize(nv);
-    const ViewGeometry& g = geometry[charts.view[c]];
     const Rect& s = source[c];
     const Rect& d = placed[c];
     const float sx = static_cast<float>(d.w) / s.w;
     const float sy = static_cast<float>(d.h) / s.h;
-    int next = uv_start[c];
-    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
-      const int fi = charts.faces[k];
-      for (int corner = 0; corner < 3; ++corner) {
-        const int vi = mesh->faces[fi][corner];
-        if (local.chart[vi] != mark) {
-          local.chart[vi] = mark;
-          float u = 0.0f, v = 0.0f;
-          if (!g.Project(mesh->vertices[vi], &u, &v)) {
-            u = static_cast<float>(s.x);
-            v = static_cast<float>(s.y);
-          }
-          // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
-          const float tx = d.x + (u - s.x + 0.5f) * sx;
-          const float ty = d.y + (v - s.y + 0.5f) * sy;
-          local.uv[vi] = next;
-          uvs[next++] = Eigen::Vector2f(std::clamp(tx * inv_w, 0.0f, 1.0f),
-                                        std::clamp(ty * inv_h, 0.0f, 1.0f));
-        }
-        uv_faces[fi][corner] = local.uv[vi];
-      }
+    for (int i = uv_start[c]; i < uv_start[c + 1]; ++i) {
+      // A vertex behind the camera maps to the rectangle's corner.
+      const float u = projected.in_front[i] ? projected.u[i] : static_cast<float>(s.x);
+      const float v = projected.in_front[i] ? projected.v[i] : static_cast<float>(s.y);
+      // Image pixel centre u sits at texel coordinate d.x + (u - s.x + 0.5) * sx - 0.5.
+      const float tx = d.x + (u - s.x + 0.5f) * sx;
+      const float ty = d.y + (v - s.y + 0.5f) * sy;
+      uvs[i] =
+          Eigen::Vector2f(std::clamp(tx * inv_w, 0.0f, 1.0f), std::clamp(ty * inv_h, 0.0f, 1.0f));
     }
   });
+  std::vector<Eigen::Vector3i> uv_faces = std::move(projected.uv_faces);
   if (has_unseen) {
     const int unseen_uv = uv_start.back();
     uvs[unseen_uv] = Eigen::Vector2f((placed[unseen].x + 0.5f * kUnseenPatch) * inv_w,

@@ -183,6 +183,15 @@ Surface MeasureSurface(Mesh* mesh, bool atlas) {
 void MeasureNeighbourhoods(const Mesh& mesh, Surface* surface) {
   surface->neighbours = FaceNeighbours(mesh, surface->around);
   SmoothFaceNormals(mesh, surface);
+  Surface& s = *surface;
+  s.face_point.resize(mesh.faces.size());
+  ParallelChunks(0, mesh.faces.size(), kFacesPerTask, [&s](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) {
+      s.face_point[i] = Surface::FacePoint{s.centroid[i].x(), s.centroid[i].y(), s.centroid[i].z(),
+                                           s.snx[i],          s.sny[i],          s.snz[i],
+                                           s.fnx[i],          s.fny[i],          s.fnz[i]};
+    }
+  });
 }
 
 VertexClusters ClusterVertices(const std::vector<Eigen::Vector3f>& vertices,

@@ -1,5 +1,6 @@
 #include "reconstruct/texture/texture.h"
 
+#include <atomic>
 #include <limits>
 
 #include <fmt/format.h>
@@ -12,8 +13,8 @@ namespace {
 
 using texture_internal::AssignUvs;
 using texture_internal::Candidates;
-using texture_internal::ChartRects;
 using texture_internal::Charts;
+using texture_internal::ChartUvs;
 using texture_internal::ClusterVertices;
 using texture_internal::DrawAtlas;
 using texture_internal::Float4;
@@ -25,6 +26,7 @@ using texture_internal::MeasureSurface;
 using texture_internal::PackCharts;
 using texture_internal::Packing;
 using texture_internal::PerView;
+using texture_internal::ProjectCharts;
 using texture_internal::Rect;
 using texture_internal::Sightings;
 using texture_internal::Surface;
@@ -60,21 +62,27 @@ Expected<void> CheckInputs(const std::vector<View>& views, const std::vector<cv:
 // Sets mesh->colors from the sums of the samples (mid-grey where there are none); returns the
 // number of vertices without any.
 std::int64_t ColorVertices(const std::vector<Float4>& color_sum, Mesh* mesh) {
-  const int nv = static_cast<int>(mesh->vertices.size());
-  std::int64_t unseen = 0;
-  mesh->colors.assign(nv, kUnseenColor);
-  for (int vi = 0; vi < nv; ++vi) {
-    const float weight = color_sum[vi][3];
-    if (weight <= 0.0f) {
-      ++unseen;
-      continue;
+  const std::size_t nv = mesh->vertices.size();
+  mesh->colors.resize(nv);
+  // On all cores: each chunk of vertices counts its unseen ones (an exact sum in any order).
+  std::atomic<std::int64_t> unseen = 0;
+  ParallelChunks(0, nv, 16384, [&](std::size_t lo, std::size_t hi) {
+    std::int64_t chunk_unseen = 0;
+    for (std::size_t vi = lo; vi < hi; ++vi) {
+      const float weight = color_sum[vi][3];
+      if (weight <= 0.0f) {
+        ++chunk_unseen;
+        mesh->colors[vi] = kUnseenColor;
+        continue;
+      }
+      const Float4 bgr = color_sum[vi] / weight;
+      auto byte = [](float x) {
+        return static_cast<std::uint8_t>(std::clamp(std::lround(x), 0L, 255L));
+      };
+      mesh->colors[vi] = Color(byte(bgr[2]), byte(bgr[1]), byte(bgr[0]));
     }
-    const Float4 bgr = color_sum[vi] / weight;
-    auto byte = [](float x) {
-      return static_cast<std::uint8_t>(std::clamp(std::lround(x), 0L, 255L));
-    };
-    mesh->colors[vi] = Color(byte(bgr[2]), byte(bgr[1]), byte(bgr[0]));
-  }
+    unseen += chunk_unseen;
+  });
   return unseen;
 }
 
@@ -135,14 +143,15 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
                                     surface.neighbours);
   stats.unseen_faces = charts.unseen_faces;
   stats.charts = charts.count;
-  const std::vector<Rect> source = ChartRects(*mesh, charts, geometry);
+  ChartUvs projected = ProjectCharts(*mesh, charts, geometry);
+  const std::vector<Rect> source = projected.source;
   Expected<Packing> packing = PackCharts(source, options.texture_size_px);
   if (!packing) {
     return std::unexpected(packing.error());
   }
   stats.atlas_scale = packing->scale;
   cv::Mat atlas = DrawAtlas(charts, source, *packing, images);
-  AssignUvs(charts, source, *packing, geometry, mesh);
+  AssignUvs(charts, std::move(projected), *packing, mesh);
   mesh->texture = atlas;
   return stats;
 }

@@ -131,6 +131,14 @@ struct Surface {
   std::vector<Eigen::Vector3f> centroid;
   std::vector<float> snx, sny, snz;
   std::vector<std::array<int, 3>> neighbours;
+  // The same per face in one place (MeasureNeighbourhoods): what a view's sweep reads of each
+  // candidate face, from one cache line rather than seven arrays.
+  struct FacePoint {
+    float x, y, z;     // centroid
+    float sx, sy, sz;  // smoothed normal
+    float fx, fy, fz;  // own normal
+  };
+  std::vector<FacePoint> face_point;
   // Per vertex: the unit area-weighted normal, zero where it vanishes; the faces around it.
   std::vector<Eigen::Vector3f> vertex_normal;
   VertexFaces around;
@@ -145,8 +153,8 @@ struct Surface {
 // (Mesh::normals: the vertex normals, +z where they vanish). `atlas`: whether the per-face parts
 // are wanted.
 Surface MeasureSurface(Mesh* mesh, bool atlas);
-// Adds the faces' neighbours and smoothed normals to a Surface MeasureSurface made with `atlas`
-// (it writes only those).
+// Adds the faces' neighbours, smoothed normals and face_point to a Surface MeasureSurface made
+// with `atlas` (it writes only those).
 void MeasureNeighbourhoods(const Mesh& mesh, Surface* surface);
 
 // A group of vertices (a cell of a coarse grid over their box), with its box and normal cone.
@@ -285,9 +293,17 @@ Charts GroupCharts(const std::vector<int>& label,
 struct Rect {
   int x = 0, y = 0, w = 0, h = 0;
 };
-// Each chart's rectangle in its view (pixels, margin included, clamped to the image).
-std::vector<Rect> ChartRects(const Mesh& mesh, const Charts& charts,
-                             const std::vector<ViewGeometry>& geometry);
+// The charts in their views: each chart's vertices (one uv per (chart, vertex), chart after
+// chart, each chart's in the order its faces first reach them) projected once.
+struct ChartUvs {
+  std::vector<Rect> source;  // per chart: its rectangle (pixels, margin included, clamped)
+  std::vector<int> start;    // count + 1: chart c's uvs [start[c], start[c + 1])
+  std::vector<float> u, v;   // per uv: its vertex's pixel in the chart's view
+  std::vector<std::uint8_t> in_front;     // per uv: whether it projects (else u, v unused)
+  std::vector<Eigen::Vector3i> uv_faces;  // per face (of the charts): its corners' uvs
+};
+ChartUvs ProjectCharts(const Mesh& mesh, const Charts& charts,
+                       const std::vector<ViewGeometry>& geometry);
 
 // The charts' rectangles placed in the atlas: placed[c] for chart c, placed[charts] for the
 // unseen patch; `scale` texels per image pixel.
@@ -307,7 +323,6 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
 
 // Sets mesh->uvs and uv_faces: one uv per (chart, vertex), the projection into the chart's view
 // mapped into its placed rectangle, and the unseen patch's centre for the unseen faces.
-void AssignUvs(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-               const std::vector<ViewGeometry>& geometry, Mesh* mesh);
+void AssignUvs(const Charts& charts, ChartUvs&& projected, const Packing& packing, Mesh* mesh);
 
 }  // namespace revolve::reconstruct::texture_internal

@@ -8,6 +8,54 @@ namespace {
 
 constexpr std::size_t kNormalsPerTask = 8192;
 
+// Per view k, the entries emit(i, slot) of the items i in [0, n) and their slots with
+// view_of(i, slot) == k (-1: none; the slots of an item in increasing order, a -1 ending them),
+// in item order: a counting sort, on all cores in fixed chunks of items (each chunk counts its
+// entries per view, then writes them where the chunks before it end), so the same entries in
+// the same order as one pass.
+template <typename Entry, typename ViewOf, typename Emit>
+PerView<Entry> SortByView(int nviews, std::size_t n, const ViewOf& view_of, const Emit& emit) {
+  const std::size_t chunks = (n + kNormalsPerTask - 1) / kNormalsPerTask;
+  std::vector<int> count(chunks * nviews, 0);  // chunk-major
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    int* own = &count[chunk * nviews];
+    for (std::size_t i = chunk * kNormalsPerTask; i < std::min(n, (chunk + 1) * kNormalsPerTask);
+         ++i) {
+      for (int slot = 0; slot < kCandidates; ++slot) {
+        const int k = view_of(i, slot);
+        if (k < 0) break;
+        ++own[k];
+      }
+    }
+  });
+  PerView<Entry> out;
+  out.start.assign(nviews + 1, 0);
+  // count[chunk][k] becomes where chunk's entries of view k start.
+  int at = 0;
+  for (int k = 0; k < nviews; ++k) {
+    out.start[k] = at;
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+      const int c = count[chunk * nviews + k];
+      count[chunk * nviews + k] = at;
+      at += c;
+    }
+  }
+  out.start[nviews] = at;
+  out.entries.resize(at);
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    int* fill = &count[chunk * nviews];
+    for (std::size_t i = chunk * kNormalsPerTask; i < std::min(n, (chunk + 1) * kNormalsPerTask);
+         ++i) {
+      for (int slot = 0; slot < kCandidates; ++slot) {
+        const int k = view_of(i, slot);
+        if (k < 0) break;
+        out.entries[fill[k]++] = emit(i, slot);
+      }
+    }
+  });
+  return out;
+}
+
 }  // namespace
 
 ViewRanking::ViewRanking(const std::vector<ViewGeometry>& geometry,
@@ -35,37 +83,38 @@ ViewRanking::ViewRanking(const std::vector<ViewGeometry>& geometry,
     used_y.push_back(direction_[k].y());
     used_z.push_back(direction_[k].z());
   }
-  std::vector<float> used_score(used_views.size());
-  for (int face = 0; face < 6; ++face) {
-    for (int bt = 0; bt < kBins; ++bt) {
-      for (int bs = 0; bs < kBins; ++bs) {
-        const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
-        const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
-        Eigen::Vector3f n;
-        const float sign = face & 1 ? -1.0f : 1.0f;
-        switch (face / 2) {
-          case 0:
-            n = Eigen::Vector3f(sign, a, b);
-            break;
-          case 1:
-            n = Eigen::Vector3f(a, sign, b);
-            break;
-          default:
-            n = Eigen::Vector3f(a, b, sign);
-            break;
-        }
-        n.normalize();
-        // The scores first (one loop the compiler vectorises; the products summed in the order
-        // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
-        for (std::size_t j = 0; j < used_views.size(); ++j) {
-          used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
-        }
-        Candidates c;
-        for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
-        bins_[(face * kBins + bt) * kBins + bs] = c;
+  // Each bin apart: the rows of bins on all cores.
+  ParallelFor(0, std::size_t{6} * kBins, [&](std::size_t row) {
+    const int face = static_cast<int>(row) / kBins;
+    const int bt = static_cast<int>(row) % kBins;
+    std::vector<float> used_score(used_views.size());
+    for (int bs = 0; bs < kBins; ++bs) {
+      const float a = 2.0f * (bs + 0.5f) / kBins - 1.0f;
+      const float b = 2.0f * (bt + 0.5f) / kBins - 1.0f;
+      Eigen::Vector3f n;
+      const float sign = face & 1 ? -1.0f : 1.0f;
+      switch (face / 2) {
+        case 0:
+          n = Eigen::Vector3f(sign, a, b);
+          break;
+        case 1:
+          n = Eigen::Vector3f(a, sign, b);
+          break;
+        default:
+          n = Eigen::Vector3f(a, b, sign);
+          break;
       }
+      n.normalize();
+      // The scores first (one loop the compiler vectorises; the products summed in the order
+      // of Eigen's dot: x + (y + z)), then the best kCandidates, in a local copy.
+      for (std::size_t j = 0; j < used_views.size(); ++j) {
+        used_score[j] = n.x() * used_x[j] + (n.y() * used_y[j] + n.z() * used_z[j]);
+      }
+      Candidates c;
+      for (std::size_t j = 0; j < used_views.size(); ++j) c.Insert(used_score[j], used_views[j]);
+      bins_[(face * kBins + bt) * kBins + bs] = c;
     }
-  }
+  });
 }
 
 int ViewRanking::BinOf(float x, float y, float z) {
@@ -113,25 +162,11 @@ std::vector<Candidates> ViewRanking::Rank(int count, const float* x, const float
 
 PerView<std::int64_t> ViewRanking::FacesPerView(
     const std::vector<Candidates>& face_candidates) const {
-  const int nviews = static_cast<int>(direction_.size());
-  PerView<std::int64_t> out;
-  std::vector<int>& face_start = out.start;
-  face_start.assign(nviews + 1, 0);
-  for (const Candidates& c : face_candidates) {
-    for (int s = 0; s < kCandidates; ++s) {
-      if (c.view[s] >= 0) ++face_start[c.view[s] + 1];
-    }
-  }
-  std::partial_sum(face_start.begin(), face_start.end(), face_start.begin());
-  out.entries.resize(face_start.back());
-  std::vector<int> fill(face_start.begin(), face_start.end() - 1);
-  for (std::size_t i = 0; i < face_candidates.size(); ++i) {
-    for (int s = 0; s < kCandidates; ++s) {
-      const int k = face_candidates[i].view[s];
-      if (k >= 0) out.entries[fill[k]++] = static_cast<std::int64_t>(i) * kCandidates + s;
-    }
-  }
-  return out;
+  // (A candidate's slots are filled from the first: the first empty one ends them.)
+  return SortByView<std::int64_t>(
+      static_cast<int>(direction_.size()), face_candidates.size(),
+      [&](std::size_t i, int slot) { return static_cast<int>(face_candidates[i].view[slot]); },
+      [](std::size_t i, int slot) { return static_cast<std::int64_t>(i) * kCandidates + slot; });
 }
 
 PerView<int> ViewRanking::VerticesPerView(const std::vector<Eigen::Vector3f>& vertex_normal,
@@ -150,20 +185,10 @@ PerView<int> ViewRanking::VerticesPerView(const std::vector<Eigen::Vector3f>& ve
                      ranked[vi] = Rank(n.x(), n.y(), n.z()).view;
                    }
                  });
-  for (int vi = 0; vi < nv; ++vi) {
-    for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
-      ++vertex_start[ranked[vi][slot] + 1];
-    }
-  }
-  std::partial_sum(vertex_start.begin(), vertex_start.end(), vertex_start.begin());
-  out.entries.resize(vertex_start.back());
-  std::vector<int> fill(vertex_start.begin(), vertex_start.end() - 1);
-  for (int vi = 0; vi < nv; ++vi) {
-    for (int slot = 0; slot < kCandidates && ranked[vi][slot] >= 0; ++slot) {
-      out.entries[fill[ranked[vi][slot]]++] = vi;
-    }
-  }
-  return out;
+  return SortByView<int>(
+      nviews, static_cast<std::size_t>(nv),
+      [&](std::size_t vi, int slot) { return static_cast<int>(ranked[vi][slot]); },
+      [](std::size_t vi, int) { return static_cast<int>(vi); });
 }
 
 }  // namespace revolve::reconstruct::texture_internal

@@ -1,5 +1,7 @@
+#include <algorithm>
 #include <bit>
 #include <limits>
+#include <span>
 
 #include <tbb/enumerable_thread_specific.h>
 
@@ -8,6 +10,13 @@
 
 namespace revolve::reconstruct::texture_internal {
 namespace {
+
+// Makes *v at least n long (scratch kept across views: growing only, so that it is not zeroed
+// again each time).
+template <typename T>
+void GrowTo(std::vector<T>* v, std::size_t n) {
+  if (v->size() < n) v->resize(n);
+}
 
 // What a view needs to know of candidate points (SoA, `count` of them): inputs x, y, z (the
 // position) and nx, ny, nz (the unit normal); outputs, for each point, the cosine between its
@@ -177,8 +186,8 @@ class DepthCells {
                    const float* __restrict y, const float* __restrict z, const float* __restrict nx,
                    const float* __restrict ny, const float* __restrict nz, int count,
                    std::vector<int>* index, std::vector<float>* depth) {
-    index->resize(count);
-    depth->resize(count);
+    GrowTo(index, static_cast<std::size_t>(count));
+    GrowTo(depth, static_cast<std::size_t>(count));
     int* __restrict cell_of = index->data();
     float* __restrict depth_of = depth->data();
     const CellGrid grid{inv_cell_, all_cols_, all_rows_, c0_, r0_, cols_, rows_};
@@ -292,23 +301,24 @@ class ViewSweep {
     const float cell_mm = cell_px * mm_per_px;
     Window window;
     PendVertices(k, g, cell_mm, &window);
-    PendFaces(k, g, &window);
-    if (pending_faces_.empty() && pending_vertices_.empty()) return;
+    PendFaces(k, g, cell_mm, &window);
+    if (face_count_ == 0 && vertex_count_ == 0) return;
     DepthCells cells(g.width, g.height, cell_px, window.u_min, window.v_min, window.u_max,
                      window.v_max);
-    for (const Pending& p : pending_faces_) cells.Mark(p.u, p.v);
-    for (const VertexPending& p : pending_vertices_) cells.Mark(p.u, p.v);
+    for (const Pending& p : PendingFaces()) cells.Mark(p.u, p.v);
+    for (const VertexPending& p : PendingVertices()) cells.Mark(p.u, p.v);
     cells.EndMarks();
     Splat(k, g, &cells);
-    Record(k, g, cells, cell_mm, samples);
+    Record(k, cells, samples);
   }
 
  private:
-  struct Pending {  // a candidate face to test in a view
+  struct Pending {  // a candidate face to test in a view, with its centroid's PointTerms
     int index;
     int slot;    // the face's candidate slot
     float u, v;  // its pixel
     float cos_angle;
+    float depth, tolerance;
   };
   struct VertexPending {  // a candidate vertex to test in a view, with its PointTerms
     int index;
@@ -331,14 +341,14 @@ class ViewSweep {
   // pending_vertices_: the vertices view k may colour (ranked for it, facing it within
   // max_angle_deg, in its image) with their PointTerms; their pixels added to *window.
   void PendVertices(int k, const ViewGeometry& g, float cell_mm, Window* window) {
-    pending_vertices_.clear();
+    vertex_count_ = 0;
     const int first = in_.vertices.start[k];
     const int count = in_.vertices.start[k + 1] - first;
     for (auto* scratch : {&cx_, &cy_, &cz_, &cnx_, &cny_, &cnz_, &c_cos_, &c_u_, &c_v_, &c_depth_,
                           &c_tolerance_, &c_weight_}) {
-      scratch->resize(count);
+      GrowTo(scratch, static_cast<std::size_t>(count));
     }
-    c_front_.resize(count);
+    GrowTo(&c_front_, static_cast<std::size_t>(count));
     const std::vector<Eigen::Vector3f>& vertex_normal = in_.surface.vertex_normal;
     for (int j = 0; j < count; ++j) {
       const int vi = in_.vertices.entries[first + j];
@@ -354,7 +364,7 @@ class ViewSweep {
         PointTerms{cx_.data(), cy_.data(), cz_.data(), cnx_.data(), cny_.data(), cnz_.data(),
                    c_cos_.data(), c_u_.data(), c_v_.data(), c_depth_.data(), c_tolerance_.data(),
                    c_weight_.data(), c_front_.data()});
-    pending_vertices_.resize(count);
+    GrowTo(&pending_vertices_, static_cast<std::size_t>(count));
     int kept = 0;
     for (int j = 0; j < count; ++j) {
       if (c_cos_[j] < in_.cos_min || !c_front_[j] || !g.InImage(c_u_[j], c_v_[j])) continue;
@@ -366,26 +376,63 @@ class ViewSweep {
                                                 c_weight_[j]};
       window->Add(c_u_[j], c_v_[j]);
     }
-    pending_vertices_.resize(kept);
+    vertex_count_ = kept;
   }
 
-  // pending_faces_: the same for the faces view k may texture (their centroids).
-  void PendFaces(int k, const ViewGeometry& g, Window* window) {
-    pending_faces_.clear();
+  // pending_faces_: the same for the faces view k may texture (their centroids, with the
+  // smoothed normal's PointTerms; a face whose own normal does not face the camera is left out).
+  // Gathered, then computed in the vectorised loops as the vertices are.
+  void PendFaces(int k, const ViewGeometry& g, float cell_mm, Window* window) {
+    face_count_ = 0;
     const Surface& s = in_.surface;
-    for (int e = in_.faces.start[k]; e < in_.faces.start[k + 1]; ++e) {
-      const int i = static_cast<int>(in_.faces.entries[e] / kCandidates);
-      const int slot = static_cast<int>(in_.faces.entries[e] % kCandidates);
-      const Eigen::Vector3f to_camera = g.ToCamera(s.centroid[i]);
-      if (Eigen::Vector3f(s.fnx[i], s.fny[i], s.fnz[i]).dot(to_camera) <= 0.0f) continue;
-      const float cos_angle = Eigen::Vector3f(s.snx[i], s.sny[i], s.snz[i]).dot(to_camera);
-      float u, v;
-      if (cos_angle < in_.cos_min || !g.Project(s.centroid[i], &u, &v) || !g.InImage(u, v)) {
-        continue;
-      }
-      pending_faces_.push_back(Pending{i, slot, u, v, cos_angle});
-      window->Add(u, v);
+    const int first = in_.faces.start[k];
+    const int count = in_.faces.start[k + 1] - first;
+    for (auto* scratch : {&cx_, &cy_, &cz_, &cnx_, &cny_, &cnz_, &c_cos_, &c_u_, &c_v_, &c_depth_,
+                          &c_tolerance_, &c_weight_, &cfx_, &cfy_, &cfz_, &c_own_cos_}) {
+      GrowTo(scratch, static_cast<std::size_t>(count));
     }
+    GrowTo(&c_front_, static_cast<std::size_t>(count));
+    for (int j = 0; j < count; ++j) {
+      const Surface::FacePoint& f =
+          s.face_point[static_cast<std::size_t>(in_.faces.entries[first + j] / kCandidates)];
+      cx_[j] = f.x;
+      cy_[j] = f.y;
+      cz_[j] = f.z;
+      cnx_[j] = f.sx;
+      cny_[j] = f.sy;
+      cnz_[j] = f.sz;
+      cfx_[j] = f.fx;
+      cfy_[j] = f.fy;
+      cfz_[j] = f.fz;
+    }
+    ComputePointTerms(
+        g, in_.max_tan, 2.0f * s.mean_edge_mm, 4.0f * cell_mm, count,
+        PointTerms{cx_.data(), cy_.data(), cz_.data(), cnx_.data(), cny_.data(), cnz_.data(),
+                   c_cos_.data(), c_u_.data(), c_v_.data(), c_depth_.data(), c_tolerance_.data(),
+                   c_weight_.data(), c_front_.data()});
+    if (g.affine) {
+      CosinesToDirection(g.direction, count, cfx_.data(), cfy_.data(), cfz_.data(),
+                         c_own_cos_.data());
+    } else {
+      CosinesToCentre(g.centre, count, cx_.data(), cy_.data(), cz_.data(), cfx_.data(), cfy_.data(),
+                      cfz_.data(), c_own_cos_.data());
+    }
+    GrowTo(&pending_faces_, static_cast<std::size_t>(count));
+    int kept = 0;
+    for (int j = 0; j < count; ++j) {
+      if (c_own_cos_[j] <= 0.0f) continue;
+      if (c_cos_[j] < in_.cos_min || !c_front_[j] || !g.InImage(c_u_[j], c_v_[j])) continue;
+      const std::int64_t entry = in_.faces.entries[first + j];
+      pending_faces_[kept++] = Pending{static_cast<int>(entry / kCandidates),
+                                       static_cast<int>(entry % kCandidates),
+                                       c_u_[j],
+                                       c_v_[j],
+                                       c_cos_[j],
+                                       c_depth_[j],
+                                       c_tolerance_[j]};
+      window->Add(c_u_[j], c_v_[j]);
+    }
+    face_count_ = kept;
   }
 
   // Every vertex facing view k's camera (within the margin) and in front of it is splatted into
@@ -427,23 +474,14 @@ class ViewSweep {
 
   // The pending faces and vertices view k sees (not behind their cell's depth by more than
   // their tolerance): a face's cosine recorded in its slot, a vertex's weighted sample added.
-  void Record(int k, const ViewGeometry& g, const DepthCells& cells, float cell_mm,
-              std::vector<VertexSample>* samples) {
-    const float max_tan = in_.max_tan;
-    const float mean_edge_mm = in_.surface.mean_edge_mm;
-    auto visible = [&](const Eigen::Vector3f& x, const Pending& p) {
-      const float tan_angle =
-          std::min(max_tan, std::sqrt(std::max(0.0f, 1.0f - p.cos_angle * p.cos_angle)) /
-                                std::max(p.cos_angle, 1e-3f));
-      const float tolerance = 2.0f * mean_edge_mm + 4.0f * cell_mm * tan_angle;
-      return g.Depth(x) <= cells.At(p.u, p.v) + tolerance;
-    };
-    for (const Pending& p : pending_faces_) {
-      if (!visible(in_.surface.centroid[p.index], p)) continue;
+  void Record(int k, const DepthCells& cells, std::vector<VertexSample>* samples) {
+    for (const Pending& p : PendingFaces()) {
+      if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
       seen_.face_cos[static_cast<std::size_t>(p.index) * kCandidates + p.slot] = p.cos_angle;
     }
     const cv::Mat& image = in_.images[k];
-    for (const VertexPending& p : pending_vertices_) {
+    samples->reserve(static_cast<std::size_t>(vertex_count_));
+    for (const VertexPending& p : PendingVertices()) {
       if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
       samples->push_back(VertexSample{p.index, p.weight * SampleBilinearWithOne(image, p.u, p.v)});
     }
@@ -455,11 +493,23 @@ class ViewSweep {
   // Scratch for a view's candidate vertices: positions and normals, then their PointTerms.
   std::vector<float> cx_, cy_, cz_, cnx_, cny_, cnz_, c_cos_, c_u_, c_v_, c_depth_, c_tolerance_,
       c_weight_;
+  // A view's candidate faces' own (unsmoothed) normals and their cosines to the camera.
+  std::vector<float> cfx_, cfy_, cfz_, c_own_cos_;
   std::vector<int> c_front_;
   std::vector<int> splat_cell_;  // scratch for the splats
   std::vector<float> splat_depth_;
+  // The view's pending faces and vertices: the first face_count_ and vertex_count_ (the
+  // arrays only grow).
+  std::span<const Pending> PendingFaces() const {
+    return {pending_faces_.data(), static_cast<std::size_t>(face_count_)};
+  }
+  std::span<const VertexPending> PendingVertices() const {
+    return {pending_vertices_.data(), static_cast<std::size_t>(vertex_count_)};
+  }
   std::vector<Pending> pending_faces_;
   std::vector<VertexPending> pending_vertices_;
+  int face_count_ = 0;
+  int vertex_count_ = 0;
 };
 
 }  // namespace
@@ -480,8 +530,20 @@ Sightings SweepViews(const SweepInputs& in) {
   tbb::enumerable_thread_specific<ViewSweep> sweeps([&] { return ViewSweep(in, &seen); });
   ParallelFor(0, views.size(),
               [&](std::size_t i) { sweeps.local().SeeView(views[i], &samples[i]); });
-  for (const std::vector<VertexSample>& view_samples : samples) {
-    for (const VertexSample& sample : view_samples) seen.color_sum[sample.index] += sample.value;
+  // Each view's samples are in vertex order, so a range of vertices finds its samples in every
+  // view's list by bisection: the ranges on all cores, each vertex's sum in view order.
+  if (in.vertex_colors) {
+    ParallelChunks(0, seen.color_sum.size(), 16384, [&](std::size_t lo, std::size_t hi) {
+      for (const std::vector<VertexSample>& view_samples : samples) {
+        auto it = std::lower_bound(view_samples.begin(), view_samples.end(), lo,
+                                   [](const VertexSample& sample, std::size_t v) {
+                                     return sample.index < static_cast<int>(v);
+                                   });
+        for (; it != view_samples.end() && it->index < static_cast<int>(hi); ++it) {
+          seen.color_sum[it->index] += it->value;
+        }
+      }
+    });
   }
   return seen;
 }

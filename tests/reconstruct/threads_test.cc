@@ -25,6 +25,8 @@
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/parallel.h"
 #include "reconstruct/texture/texture.h"
+#include "reconstruct/texture/texture_internal.h"
+#include "reconstruct/union_find.h"
 #include "tests/reconstruct/sphere_scene.h"
 
 namespace revolve::reconstruct {
@@ -254,6 +256,135 @@ TEST(Threads, MarchingCubesInSlabsIsOneSweep) {
     EXPECT_TRUE(slabs.vertices == sweep.vertices);
     EXPECT_TRUE(slabs.faces == sweep.faces);
   }
+}
+
+// Faces on a strip of `rows` x `cols` squares, two triangles each, with random candidate views
+// (of 4) and cosines (some unseen): islands and ragged borders for the labels to smooth.
+struct RandomLabelling {
+  std::vector<float> face_cos;
+  std::vector<texture_internal::Candidates> candidates;
+  std::vector<std::array<int, 3>> neighbours;
+};
+RandomLabelling MakeRandomLabelling(int rows, int cols, unsigned seed) {
+  using texture_internal::kCandidates;
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  RandomLabelling out;
+  const int nf = 2 * rows * cols;
+  out.candidates.resize(nf);
+  out.face_cos.assign(static_cast<std::size_t>(nf) * kCandidates, -2.0f);
+  out.neighbours.assign(nf, {-1, -1, -1});
+  auto face = [cols](int r, int c, int half) { return 2 * (r * cols + c) + half; };
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      // Lower half: left, bottom, diagonal; upper half: right, top, diagonal.
+      out.neighbours[face(r, c, 0)] = {c > 0 ? face(r, c - 1, 1) : -1,
+                                       r > 0 ? face(r - 1, c, 1) : -1, face(r, c, 1)};
+      out.neighbours[face(r, c, 1)] = {c + 1 < cols ? face(r, c + 1, 0) : -1,
+                                       r + 1 < rows ? face(r + 1, c, 0) : -1, face(r, c, 0)};
+    }
+  }
+  for (int i = 0; i < nf; ++i) {
+    // Views drift along the strip, so that neighbours mostly share them.
+    const int base = (i / (2 * cols) / 7 + i % (2 * cols) / 9) % 4;
+    for (int s = 0; s < kCandidates; ++s) {
+      out.candidates[i].Insert(0.9f - 0.05f * static_cast<float>(s) + 0.03f * unit(random),
+                               (base + s) % 4);
+    }
+    for (int s = 0; s < kCandidates; ++s) {
+      if (unit(random) < 0.8f) out.face_cos[i * kCandidates + s] = out.candidates[i].score[s];
+    }
+  }
+  return out;
+}
+
+// LabelFaces as it was first written: every face in every pass.
+std::vector<int> LabelFacesEveryPass(const RandomLabelling& in) {
+  using texture_internal::kCandidates;
+  const int nf = static_cast<int>(in.candidates.size());
+  std::vector<int> label(nf, -1);
+  for (int i = 0; i < nf; ++i) {
+    float best = -2.0f;
+    for (int s = 0; s < kCandidates; ++s) {
+      if (in.face_cos[i * kCandidates + s] > best) {
+        best = in.face_cos[i * kCandidates + s];
+        label[i] = in.candidates[i].view[s];
+      }
+    }
+  }
+  std::vector<int> next(nf);
+  for (int pass = 0; pass < texture_internal::kSmoothingPasses; ++pass) {
+    for (int i = 0; i < nf; ++i) {
+      next[i] = label[i];
+      float best = -std::numeric_limits<float>::infinity();
+      for (int s = 0; s < kCandidates; ++s) {
+        const float c = in.face_cos[i * kCandidates + s];
+        if (c <= -2.0f) continue;
+        float score = c;
+        for (int nb : in.neighbours[i]) {
+          if (nb >= 0 && label[nb] == in.candidates[i].view[s]) {
+            score += texture_internal::kNeighbourBonus;
+          }
+        }
+        if (score > best) {
+          best = score;
+          next[i] = in.candidates[i].view[s];
+        }
+      }
+    }
+    label.swap(next);
+  }
+  return label;
+}
+
+TEST(Threads, LabelsLookingAgainOnlyNextToChangesEqualEveryPass) {
+  for (const unsigned seed : {1u, 2u, 3u}) {
+    SCOPED_TRACE(seed);
+    const RandomLabelling in = MakeRandomLabelling(120, 170, seed);
+    const std::vector<int> expected = LabelFacesEveryPass(in);
+    EXPECT_EQ(texture_internal::LabelFaces(in.face_cos, in.candidates, in.neighbours), expected);
+    const ThreadLimit one(1);
+    EXPECT_EQ(texture_internal::LabelFaces(in.face_cos, in.candidates, in.neighbours), expected);
+  }
+}
+
+TEST(Threads, ChartsAreTheConnectedFacesOfAView) {
+  // 60000 faces: GroupCharts' union-find works in chunks of 32768, and joins across them after.
+  RandomLabelling in = MakeRandomLabelling(200, 150, 4);
+  // A few one-way neighbours (a face naming one that does not name it back) must join too, in a
+  // chunk and across chunks.
+  in.neighbours[100][0] = 5000;
+  in.neighbours[7000][1] = 30;
+  in.neighbours[40000][0] = 20;
+  in.neighbours[90][1] = 50000;
+  std::vector<int> label = texture_internal::LabelFaces(in.face_cos, in.candidates, in.neighbours);
+  label[100] = label[5000] = 2;
+  label[30] = label[7000] = 1;
+  label[40000] = label[20] = 3;
+  label[90] = label[50000] = 0;
+  const int nf = static_cast<int>(label.size());
+  // Every pair, both ways: the reference sets.
+  UnionFind sets(nf);
+  for (int i = 0; i < nf; ++i) {
+    for (int nb : in.neighbours[i]) {
+      if (nb >= 0 && label[i] >= 0 && label[nb] == label[i]) sets.Unite(i, nb);
+    }
+  }
+  const texture_internal::Charts charts = texture_internal::GroupCharts(label, in.neighbours);
+  ASSERT_GT(charts.count, 10);
+  for (int c = 0; c < charts.count; ++c) {
+    const int first = charts.faces[charts.start[c]];
+    EXPECT_EQ(charts.view[c], label[first]);
+    for (int k = charts.start[c]; k < charts.start[c + 1]; ++k) {
+      EXPECT_EQ(sets.Find(charts.faces[k]), sets.Find(first));
+    }
+    // Numbered by their first faces: a chart's first face is its set's smallest.
+    EXPECT_EQ(sets.Find(first), first);
+    if (c > 0) {
+      EXPECT_LT(charts.faces[charts.start[c - 1]], first);
+    }
+  }
+  EXPECT_EQ(charts.start[charts.count + 1], nf);
 }
 
 TEST(Threads, ThreadLimitBoundsTheLoops) {
