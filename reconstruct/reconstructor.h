@@ -70,6 +70,21 @@ class Reconstructor {
   // 1, 3 (BGR) or 4 (BGRA) 8-bit channels; a frame of another type is not used for colour.
   virtual Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) = 0;
 
+  // The rectangle of a frame of `view` that the model's colours may be read from, for a view
+  // integrated with `mask`. The hull: the mask's bounding rectangle widened by how far a surface
+  // vertex can project from it (one voxel's projection at most: each lies on a grid edge from a
+  // voxel centre inside the silhouette) and by the texture's reach (kTextureReadMarginPx), within
+  // the frame; the whole frame when some of the volume lies outside the view (it keeps what it
+  // cannot see). Default: the whole frame.
+  virtual cv::Rect FrameWindow(const cv::Mat& mask, const View& view) const;
+
+  // Integrate with a window of the frame only: `image` holds the frame's pixels from
+  // `image_origin` on, and covers FrameWindow(mask, view). The model is the one the whole frame
+  // gives. Errors: Integrate's, and bad_input for a window that leaves the frame or does not
+  // cover FrameWindow (the meridian method reads whole frames).
+  virtual Expected<void> IntegrateWindow(const cv::Mat& mask, const cv::Mat& image,
+                                         cv::Point image_origin, const View& view);
+
   // Extracts the surface of everything integrated so far: a watertight, 2-manifold,
   // outward-oriented triangle mesh. Errors: bad_input when nothing remains (empty silhouettes or
   // a volume that misses the object).

@@ -66,6 +66,12 @@ struct VoxelGrid {
   }
 };
 
+// An upper bound (px) on how far the projection in `view` of a point of the grid's box moves when
+// the point moves by up to one voxel along an axis (a voxel centre to its neighbour's). nullopt
+// when some of the box is not seen by the view: a corner on or behind the camera plane, or whose
+// nearest pixel lies outside the image.
+std::optional<double> VoxelStepBoundPx(const VoxelGrid& grid, const View& view);
+
 struct HullSurfaceOptions {
   // Each vertex at the exact crossing of its grid edge with the silhouette cones (true), or at
   // the edge's midpoint (false).

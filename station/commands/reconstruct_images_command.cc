@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <ostream>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "base/atomic_file.h"
 #include "base/log.h"
@@ -21,6 +23,7 @@
 #include "reconstruct/reconstructor.h"
 #include "station/commands/scan_command.h"
 #include "station/commands/set_masks.h"
+#include "station/contact_sheet.h"
 #include "station/report_json.h"
 #include "station/timing.h"
 
@@ -34,6 +37,10 @@ namespace rc = revolve::reconstruct;
 constexpr double kMinAgreeingIoU = 0.9;
 // --bbox coordinates beyond this are refused (a million pixels or metres is no turntable).
 constexpr double kMaxBoxCoordinate = 1e6;
+// The hull keeps each photo's pixels this far around its silhouette's rectangle (less memory);
+// a view whose texture may read further (Reconstructor::FrameWindow: coarse voxels, a volume
+// partly out of view) reads its photo again.
+constexpr int kFrameMarginPx = 24;
 
 // An option out of range: the message, or empty when the options are usable.
 std::string CheckOptions(const ReconstructImagesOptions& options) {
@@ -104,7 +111,7 @@ class ImagesRun {
     // The masks, for a person to check, once: those the carving uses, or the segmentation's
     // when the run stops before (why it stopped is then told, the masks written).
     if (!judged) {
-      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, frames_, masks_));
+      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_));
       return std::unexpected(judged.error());
     }
     REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
@@ -147,7 +154,18 @@ class ImagesRun {
     set_options.step_deg = options_.step_deg;
     set_options.segmentation.threshold = options_.threshold;
     set_options.segment_photos = legacy_threshold_;
+    // The hull reads only a window of each photo; the meridian method whole photos. The contact
+    // sheet's thumbnails are made from the whole photos.
+    set_options.frame_margin_px = options_.method == "hull" ? kFrameMarginPx : -1;
+    std::mutex thumbnails_mutex;
+    set_options.on_photo = [&](std::size_t index, const cv::Mat& photo) {
+      cv::Mat thumbnail = ContactSheetThumbnail(photo);
+      const std::lock_guard<std::mutex> lock(thumbnails_mutex);
+      if (thumbnails_.size() <= index) thumbnails_.resize(index + 1);
+      thumbnails_[index] = std::move(thumbnail);
+    };
     REVOLVE_ASSIGN_OR_RETURN(set_, rc::LoadImageSet(options_.images, set_options));
+    thumbnails_.resize(set_.images.size());
     photos_ = set_.kind == rc::ImageKind::kPhoto;
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
                         photos_ ? "photos" : "binary silhouettes", set_.width_px, set_.height_px,
@@ -155,7 +173,6 @@ class ImagesRun {
     for (rc::SetImage& image : set_.images) {
       names_.push_back(image.file_name);
       masks_.push_back(std::move(image.mask));  // held once: the consensus replaces them
-      frames_.push_back(image.image);
     }
     problems_.assign(masks_.size(), std::string());
     return {};
@@ -166,7 +183,6 @@ class ImagesRun {
   // references to the frames as it goes, not the copies given to WriteMasks. Each step's time is
   // its own (they overlap).
   Expected<void> WriteMasksWhileReconstructing() {
-    const std::vector<cv::Mat> frames = frames_;
     Expected<void> written;
     Expected<void> made;
     double masks_ms = 0.0;
@@ -174,7 +190,7 @@ class ImagesRun {
     rc::ParallelInvoke(
         [&] {
           const Clock::time_point t = Clock::now();
-          written = WriteMasks(options_.out, names_, frames, masks_);
+          written = WriteMasks(options_.out, names_, thumbnails_, masks_);
           masks_ms = MsSince(t);
         },
         [&] {
@@ -191,11 +207,24 @@ class ImagesRun {
   // Silhouettes: segmented here (photos).
   Expected<void> Segment() {
     if (photos_ && !legacy_threshold_) {
+      std::vector<cv::Mat> photos;
+      for (const rc::SetImage& image : set_.images) photos.push_back(image.image);
       SetMasks segmented;
-      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(frames_, *segment_options_, out_));
+      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(photos, *segment_options_, out_));
+      photos.clear();
       masks_ = std::move(segmented.masks);
       problems_ = std::move(segmented.problems);
       report_["segmentation"] = segmented.report;
+      if (options_.method == "hull") {
+        // Each photo cut to its window now that its mask is known (as Load does for --segment
+        // threshold).
+        rc::ParallelFor(0, set_.images.size(), [&](std::size_t i) {
+          rc::SetImage& image = set_.images[i];
+          const cv::Rect window = rc::FrameWindow(masks_[i], kFrameMarginPx);
+          image.image = image.image(window).clone();
+          image.image_origin = window.tl();
+        });
+      }
     } else {
       report_["segmentation"] = {
           {"method", photos_ ? "threshold" : "none (binary silhouettes)"},
@@ -336,16 +365,36 @@ class ImagesRun {
     std::unique_ptr<rc::Reconstructor> reconstructor;
     REVOLVE_ASSIGN_OR_RETURN(reconstructor, rc::Create(reconstruct_options));
     for (std::size_t i : usable_) {
+      rc::SetImage& image = set_.images[i];
+      REVOLVE_RETURN_IF_ERROR(CoverWindow(*reconstructor, i));
       if (Expected<void> done =
-              reconstructor->Integrate(masks_[i], set_.images[i].image, views_[i]);
+              reconstructor->IntegrateWindow(masks_[i], image.image, image.image_origin, views_[i]);
           !done) {
-        return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
+        return std::unexpected(WithContext(done.error(), image.path.string()));
       }
-      // The reconstructor holds the frame now; the set's references go.
-      set_.images[i].image.release();
-      frames_[i].release();
+      // The reconstructor holds the frame now; the set's reference goes.
+      image.image.release();
     }
     REVOLVE_ASSIGN_OR_RETURN(mesh_, reconstructor->Finish());
+    return {};
+  }
+
+  // Reads photo i again, when the window of it the set holds misses some of the pixels the
+  // reconstructor may read (Reconstructor::FrameWindow), and keeps that window of it.
+  Expected<void> CoverWindow(const rc::Reconstructor& reconstructor, std::size_t i) {
+    rc::SetImage& image = set_.images[i];
+    if (image.image.empty()) return {};
+    const cv::Rect needed = reconstructor.FrameWindow(masks_[i], views_[i]);
+    if ((cv::Rect(image.image_origin, image.image.size()) & needed) == needed) return {};
+    Logger("station")->debug("{}: read again for the pixels at ({}, {}) {}x{}", image.file_name,
+                             needed.x, needed.y, needed.width, needed.height);
+    cv::Mat photo;
+    REVOLVE_ASSIGN_OR_RETURN(
+        photo, rc::ReadImage8(image.path, static_cast<std::int64_t>(options_.max_image_mp * 1e6),
+                              cv::Size(set_.width_px, set_.height_px)));
+    if (photo.channels() == 1) cv::cvtColor(photo, photo, cv::COLOR_GRAY2BGR);
+    image.image = photo(needed).clone();
+    image.image_origin = needed.tl();
     return {};
   }
 
@@ -448,7 +497,7 @@ class ImagesRun {
   rc::ImageSet set_;
   std::vector<std::string> names_;
   std::vector<cv::Mat> masks_;
-  std::vector<cv::Mat> frames_;
+  std::vector<cv::Mat> thumbnails_;    // the contact sheet's, per photo (empty for silhouettes)
   std::vector<std::string> problems_;  // per image: why it is left out, empty when usable
   std::vector<std::size_t> usable_;
   std::vector<View> views_;

@@ -82,7 +82,8 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
 }
 
 Expected<void> WriteMasks(const std::filesystem::path& out_dir,
-                          const std::vector<std::string>& names, const std::vector<cv::Mat>& photos,
+                          const std::vector<std::string>& names,
+                          const std::vector<cv::Mat>& thumbnails,
                           const std::vector<cv::Mat>& masks) {
   const std::filesystem::path dir = out_dir / "masks";
   std::error_code ec;
@@ -102,13 +103,13 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
     written[i] = WritePngFile(path, mask);
     if (!written[i]) return;
-    cv::Mat shown;
-    if (i < photos.size() && !photos[i].empty()) {
-      shown = photos[i];
+    if (i < thumbnails.size() && !thumbnails[i].empty()) {
+      tiles[i] = ContactSheetOutline(thumbnails[i], mask);
     } else {
+      cv::Mat shown;
       cv::cvtColor(mask, shown, cv::COLOR_GRAY2BGR);
+      tiles[i] = ContactSheetTile(shown, mask);
     }
-    tiles[i] = ContactSheetTile(shown, mask);
   });
   for (const Expected<void>& w : written) {
     if (!w) return w;

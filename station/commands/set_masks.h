@@ -37,10 +37,12 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
                                  const capture::SegmentOptions& options, std::ostream& out);
 
 // Writes OUT/masks/<stem>.png (one per image, named after `names`' stems) and
-// OUT/contact_sheet.png (every image with its mask outlined; `photos` may be empty for
-// silhouettes, which are shown as they are). Errors: io naming the file.
+// OUT/contact_sheet.png (every image with its mask outlined: `thumbnails` are the photos'
+// ContactSheetThumbnail, station/contact_sheet.h; empty, or an empty one, for silhouettes, which
+// are shown as they are). Errors: io naming the file.
 Expected<void> WriteMasks(const std::filesystem::path& out_dir,
-                          const std::vector<std::string>& names, const std::vector<cv::Mat>& photos,
+                          const std::vector<std::string>& names,
+                          const std::vector<cv::Mat>& thumbnails,
                           const std::vector<cv::Mat>& masks);
 
 // Silhouette consensus (reconstruct/hull/silhouette_consensus.h) over the usable views (those
