@@ -247,6 +247,13 @@ cv::Rect FrameWindow(const cv::Mat& mask, int margin_px) {
          whole;
 }
 
+cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size) {
+  if (origin == cv::Point() && window.size() == size) return window;
+  cv::Mat whole(size, window.type(), cv::Scalar::all(0));
+  window.copyTo(whole(cv::Rect(origin, window.size())));
+  return whole;
+}
+
 Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max_pixels,
                              std::optional<cv::Size> expected_size) {
   ImageReadOptions read;

@@ -118,6 +118,10 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options);
 // the mask; the whole mask when it is empty.
 cv::Rect FrameWindow(const cv::Mat& mask, int margin_px);
 
+// The image of `size` holding `window` from `origin` on and zeros elsewhere (the whole of an
+// image kept as a window of it). Precondition: the window lies within the image.
+cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size);
+
 // Loads the set. Errors name the file: not_found (no folder, no image in it, no file matching
 // the pattern, a stop missing between the first and the last: the expected file name), bad_input
 // (an unreadable or non-8-bit image, sizes that differ, silhouettes mixed with photos, an empty

@@ -92,6 +92,7 @@ class HullReconstructor final : public Reconstructor {
     if (mesh.faces.empty()) {
       return MakeError(ErrorCode::kInternal, "the visual hull is not empty but has no surface");
     }
+    if (options_.finish_once) hull_.ReleaseViews();
     if (std::any_of(images_.begin(), images_.end(), [](const cv::Mat& m) { return !m.empty(); })) {
       const auto texture_start = std::chrono::steady_clock::now();
       TextureOptions texture;

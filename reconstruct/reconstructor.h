@@ -46,6 +46,10 @@ struct ReconstructOptions {
   // never write to a frame afterwards (reconstruct --images); a camera may reuse its buffers, so
   // the scan keeps copies. Not a configuration key.
   bool share_frames = false;
+  // hull: Finish is called once, after the last Integrate: the hull frees its copies of the masks
+  // once the surface is placed, before the colours are made (reconstruct --images: less memory
+  // at the peak). Not a configuration key.
+  bool finish_once = false;
 };
 
 // Parses [reconstruct]: method ("hull" | "meridian"), meridian_row_step_px (1..256),

@@ -123,6 +123,11 @@ class VisualHull {
   // as Integrate, 20-30x slower at 256^3; used by tests and benchmarks.
   Expected<void> IntegrateNaive(const cv::Mat& mask, const View& view);
 
+  // Frees the integrated views (their masks: width x height bytes each), keeping the occupancy:
+  // for a caller done with ExtractSurface. Afterwards the hull is as if no view had been
+  // integrated but for its occupancy (view_count() is 0).
+  void ReleaseViews() { std::vector<ViewData>().swap(views_); }
+
   // Occupancy of voxel (i, j, k); false outside the grid.
   bool Occupied(int i, int j, int k) const;
   std::int64_t OccupiedCount() const;

@@ -111,7 +111,7 @@ class ImagesRun {
     // The masks, for a person to check, once: those the carving uses, or the segmentation's
     // when the run stops before (why it stopped is then told, the masks written).
     if (!judged) {
-      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_));
+      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize()));
       return std::unexpected(judged.error());
     }
     REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
@@ -190,7 +190,8 @@ class ImagesRun {
     rc::ParallelInvoke(
         [&] {
           const Clock::time_point t = Clock::now();
-          written = WriteMasks(options_.out, names_, thumbnails_, masks_);
+          written =
+              WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), mask_origins_);
           masks_ms = MsSince(t);
         },
         [&] {
@@ -345,7 +346,23 @@ class ImagesRun {
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
     agreement_ = std::move(*agreement);
     CollectUsable();
+    // From here each mask is held as its bounding rectangle (a fraction of the image): whole
+    // masks are made again one at a time where needed.
+    mask_origins_.assign(masks_.size(), cv::Point());
+    rc::ParallelFor(0, masks_.size(), [&](std::size_t i) {
+      const cv::Rect window = rc::FrameWindow(masks_[i], 0);
+      masks_[i] = masks_[i](window).clone();
+      mask_origins_[i] = window.tl();
+    });
     return {};
+  }
+
+  cv::Size FrameSize() const { return {set_.width_px, set_.height_px}; }
+
+  // Mask i whole (its window's pixels, zeros around them).
+  cv::Mat WholeMask(std::size_t i) const {
+    return mask_origins_.empty() ? masks_[i]
+                                 : rc::WholeFromWindow(masks_[i], mask_origins_[i], FrameSize());
   }
 
   Expected<void> Reconstruct() {
@@ -360,15 +377,17 @@ class ImagesRun {
     // frame is its own.
     reconstruct_options.flat_bottom = false;
     reconstruct_options.share_frames = true;  // the set's frames are not written to again
+    reconstruct_options.finish_once = true;
     reconstruct_options.meridian_row_step_px = options_.row_step_px;
     reconstruct_options.meridian_both_sides = options_.both_sides;
     std::unique_ptr<rc::Reconstructor> reconstructor;
     REVOLVE_ASSIGN_OR_RETURN(reconstructor, rc::Create(reconstruct_options));
     for (std::size_t i : usable_) {
       rc::SetImage& image = set_.images[i];
-      REVOLVE_RETURN_IF_ERROR(CoverWindow(*reconstructor, i));
+      const cv::Mat mask = WholeMask(i);
+      REVOLVE_RETURN_IF_ERROR(CoverWindow(*reconstructor, mask, i));
       if (Expected<void> done =
-              reconstructor->IntegrateWindow(masks_[i], image.image, image.image_origin, views_[i]);
+              reconstructor->IntegrateWindow(mask, image.image, image.image_origin, views_[i]);
           !done) {
         return std::unexpected(WithContext(done.error(), image.path.string()));
       }
@@ -381,10 +400,11 @@ class ImagesRun {
 
   // Reads photo i again, when the window of it the set holds misses some of the pixels the
   // reconstructor may read (Reconstructor::FrameWindow), and keeps that window of it.
-  Expected<void> CoverWindow(const rc::Reconstructor& reconstructor, std::size_t i) {
+  Expected<void> CoverWindow(const rc::Reconstructor& reconstructor, const cv::Mat& mask,
+                             std::size_t i) {
     rc::SetImage& image = set_.images[i];
     if (image.image.empty()) return {};
-    const cv::Rect needed = reconstructor.FrameWindow(masks_[i], views_[i]);
+    const cv::Rect needed = reconstructor.FrameWindow(mask, views_[i]);
     if ((cv::Rect(image.image_origin, image.image.size()) & needed) == needed) return {};
     Logger("station")->debug("{}: read again for the pixels at ({}, {}) {}x{}", image.file_name,
                              needed.x, needed.y, needed.width, needed.height);
@@ -402,7 +422,7 @@ class ImagesRun {
     rc::MeridianReconstructor meridian(rc::MeridianOptions{
         options_.row_step_px, options_.both_sides, rc::ReconstructOptions{}.texture_size_px});
     for (std::size_t i : usable_) {
-      if (Expected<void> done = meridian.Integrate(masks_[i], set_.images[i].image, views_[i]);
+      if (Expected<void> done = meridian.Integrate(WholeMask(i), set_.images[i].image, views_[i]);
           !done) {
         return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
       }
@@ -429,8 +449,9 @@ class ImagesRun {
 
   Expected<void> Measure() {
     // Independent, each on all cores.
-    rc::ParallelInvoke([&] { stats_ = rc::ComputeStats(mesh_); },
-                       [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_); });
+    rc::ParallelInvoke(
+        [&] { stats_ = rc::ComputeStats(mesh_); },
+        [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_, mask_origins_); });
     nlohmann::json file_names = nlohmann::json::array();
     for (const std::filesystem::path& f : files_) {
       file_names.push_back(std::filesystem::relative(f, options_.out).string());
@@ -497,8 +518,9 @@ class ImagesRun {
   rc::ImageSet set_;
   std::vector<std::string> names_;
   std::vector<cv::Mat> masks_;
-  std::vector<cv::Mat> thumbnails_;    // the contact sheet's, per photo (empty for silhouettes)
-  std::vector<std::string> problems_;  // per image: why it is left out, empty when usable
+  std::vector<cv::Point> mask_origins_;  // empty: masks_ whole; else each mask's window origin
+  std::vector<cv::Mat> thumbnails_;      // the contact sheet's, per photo (empty for silhouettes)
+  std::vector<std::string> problems_;    // per image: why it is left out, empty when usable
   std::vector<std::size_t> usable_;
   std::vector<View> views_;
   Eigen::Vector3d box_min_ = Eigen::Vector3d::Zero();
