@@ -56,7 +56,8 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
 }
 
 // Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
-// index range of the survivors is an exact minimum and maximum over the layers'.
+// index range of the survivors is an exact minimum and maximum over the layers' (and over each
+// row's first and last survivor).
 CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
                         const Box& box, const AutoVolumeOptions& options) {
   CarveResult result;
@@ -79,20 +80,30 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
     const int k = static_cast<int>(layer);
     Layer& out = layers[layer];
     std::size_t first = 0;
-    for (int j = 0; j < result.dims.y(); ++j) {
-      for (int i = 0; i < result.dims.x(); ++i) {
-        const Eigen::Vector3d x =
-            result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
-        if (!CellSurvives(masks, views, x, seen_needed, &first)) continue;
-        const Eigen::Vector3i c(i, j, k);
-        if (!out.any) {
-          out.lo = out.hi = c;
-          out.any = true;
-        } else {
-          out.lo = out.lo.cwiseMin(c);
-          out.hi = out.hi.cwiseMax(c);
-        }
+    const auto survives = [&](int i, int j) {
+      const Eigen::Vector3d x =
+          result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
+      return CellSurvives(masks, views, x, seen_needed, &first);
+    };
+    const auto add = [&](const Eigen::Vector3i& c) {
+      if (!out.any) {
+        out.lo = out.hi = c;
+        out.any = true;
+      } else {
+        out.lo = out.lo.cwiseMin(c);
+        out.hi = out.hi.cwiseMax(c);
       }
+    };
+    // Only the survivors' range is wanted: each row's first and last survivor, found from its
+    // two ends; the cells between them are not tested.
+    for (int j = 0; j < result.dims.y(); ++j) {
+      int i_first = 0;
+      while (i_first < result.dims.x() && !survives(i_first, j)) ++i_first;
+      if (i_first == result.dims.x()) continue;
+      int i_last = result.dims.x() - 1;
+      while (i_last > i_first && !survives(i_last, j)) --i_last;
+      add(Eigen::Vector3i(i_first, j, k));
+      add(Eigen::Vector3i(i_last, j, k));
     }
   });
   for (const Layer& layer : layers) {
