@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "reconstruct/image_set.h"
 #include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
@@ -227,13 +228,6 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh,
   return result;
 }
 
-// The mask of `size` whose pixels from `origin` on are `window`'s, zero elsewhere.
-cv::Mat WholeMask(const cv::Mat& window, cv::Point origin, cv::Size size) {
-  cv::Mat whole(size, CV_8UC1, cv::Scalar(0));
-  window.copyTo(whole(cv::Rect(origin, window.size())));
-  return whole;
-}
-
 }  // namespace
 
 cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
@@ -320,8 +314,9 @@ ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<Vie
     const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     if (!outline) {
       const cv::Mat rendered = RenderSilhouette(mesh, views[i], !edges.empty());
-      stats.iou[i] = MaskIoU(
-          rendered, mask_origins.empty() ? masks[i] : WholeMask(masks[i], origin, rendered.size()));
+      stats.iou[i] = MaskIoU(rendered, mask_origins.empty()
+                                           ? masks[i]
+                                           : WholeFromWindow(masks[i], origin, rendered.size()));
       return;
     }
     // MaskIoU's counts: none of the silhouette lies outside its box, none of the mask outside
