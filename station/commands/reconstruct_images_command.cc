@@ -212,6 +212,7 @@ class ImagesRun {
   Expected<void> Segment() {
     if (photos_ && !legacy_threshold_) {
       std::vector<cv::Mat> photos;
+      photos.reserve(set_.images.size());
       for (const rc::SetImage& image : set_.images) photos.push_back(image.image);
       SetMasks segmented;
       REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(photos, *segment_options_, out_));
