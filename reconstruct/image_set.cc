@@ -238,6 +238,22 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
   return mask;
 }
 
+cv::Rect FrameWindow(const cv::Mat& mask, int margin_px) {
+  const cv::Rect whole(0, 0, mask.cols, mask.rows);
+  const cv::Rect roi = cv::boundingRect(mask);
+  if (roi.empty()) return whole;
+  return cv::Rect(roi.x - margin_px, roi.y - margin_px, roi.width + 2 * margin_px,
+                  roi.height + 2 * margin_px) &
+         whole;
+}
+
+cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size) {
+  if (origin == cv::Point() && window.size() == size) return window;
+  cv::Mat whole(size, window.type(), cv::Scalar::all(0));
+  window.copyTo(whole(cv::Rect(origin, window.size())));
+  return whole;
+}
+
 Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max_pixels,
                              std::optional<cv::Size> expected_size) {
   ImageReadOptions read;
@@ -274,7 +290,7 @@ struct DecodedImage {
 // Reads `image`'s file into image->image (photos, BGR) and image->mask (silhouettes, and photos
 // when options.segment_photos), refusing another size than `expected_size` (the set's, described
 // by `size_source` for the message) from the header.
-DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
+DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOptions& options,
                             std::optional<cv::Size> expected_size, const std::string& size_source) {
   DecodedImage result;
   Expected<cv::Mat> pixels = ReadImage8(image->path, options.max_image_pixels, expected_size);
@@ -302,8 +318,14 @@ DecodedImage DecodeSetImage(SetImage* image, const ImageSetOptions& options,
     } else {
       image->image = std::move(*pixels);
     }
+    if (options.on_photo) options.on_photo(index, image->image);
     if (!options.segment_photos) return result;
     image->mask = SegmentPhoto(image->image, options.segmentation);
+    if (options.frame_margin_px >= 0) {
+      const cv::Rect window = FrameWindow(image->mask, options.frame_margin_px);
+      image->image = image->image(window).clone();
+      image->image_origin = window.tl();
+    }
   }
   result.empty_mask = cv::countNonZero(image->mask) == 0;
   return result;
@@ -447,7 +469,7 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
   std::vector<DecodedImage> decoded(set.images.size());
   ParallelFor(0, set.images.size(), [&](std::size_t i) {
     decoded[i] =
-        DecodeSetImage(&set.images[i], options, size ? std::optional(size->size) : std::nullopt,
+        DecodeSetImage(i, &set.images[i], options, size ? std::optional(size->size) : std::nullopt,
                        size ? size->source : std::string());
   });
   for (const DecodedImage& d : decoded) {

@@ -20,6 +20,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -53,6 +54,12 @@ struct ImageSetOptions {
   bool segment_photos = true;
   // Larger images are refused from their headers, before decoding (base/image_read.h).
   std::int64_t max_image_pixels = kDefaultMaxImagePixels;
+  // >= 0, with segment_photos: each photo keeps only its pixels within FrameWindow(mask,
+  // frame_margin_px) (SetImage::image_origin says where they are); -1 keeps whole photos.
+  int frame_margin_px = -1;
+  // Called with each photo as decoded (BGR, whole), on the thread that decoded it, before it is
+  // cut to its window; `index` is its place in ImageSet::images. May be empty.
+  std::function<void(std::size_t index, const cv::Mat& photo)> on_photo;
 };
 
 enum class ImageKind { kSilhouette, kPhoto };
@@ -64,7 +71,8 @@ struct SetImage {
   // order.
   int index = 0;
   double angle_deg = 0.0;  // index * step_deg
-  cv::Mat image;           // CV_8UC3 BGR for photos; empty for silhouettes
+  cv::Mat image;           // CV_8UC3 BGR for photos (or a window of it); empty for silhouettes
+  cv::Point image_origin;  // the photo's pixel that is image's (0, 0)
   cv::Mat mask;            // CV_8UC1, 255 = object (empty: a photo not segmented here)
 };
 
@@ -105,6 +113,14 @@ std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image);
 
 // The mask of a photo on a black background (see the file comment). `image`: 8-bit BGR or grey.
 cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options);
+
+// The bounding rectangle of `mask`'s non-zero pixels widened by margin_px on every side, within
+// the mask; the whole mask when it is empty.
+cv::Rect FrameWindow(const cv::Mat& mask, int margin_px);
+
+// The image of `size` holding `window` from `origin` on and zeros elsewhere (the whole of an
+// image kept as a window of it). Precondition: the window lies within the image.
+cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size);
 
 // Loads the set. Errors name the file: not_found (no folder, no image in it, no file matching
 // the pattern, a stop missing between the first and the last: the expected file name), bad_input

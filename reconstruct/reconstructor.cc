@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -18,38 +20,51 @@ namespace {
 constexpr int kMinResolution = 16;
 constexpr int kMaxResolution = 1024;
 
+// Reconstructor::FrameWindow for the hull: a surface vertex lies on a grid edge from a voxel
+// centre whose nearest pixel is in the silhouette (less than half a pixel off its bounding
+// rectangle) at most a voxel away; the texture reads kTextureReadMarginPx around the vertices'
+// projections; one pixel more for the texture's float projections.
+cv::Rect HullFrameWindow(const VoxelGrid& grid, const cv::Mat& mask, const View& view) {
+  const cv::Rect frame(0, 0, view.width_px, view.height_px);
+  const cv::Rect roi = cv::boundingRect(mask);
+  const std::optional<double> step_px = VoxelStepBoundPx(grid, view);
+  if (roi.empty() || !step_px || !(*step_px < 1e6)) return frame;
+  const int margin = static_cast<int>(std::ceil(*step_px)) + kTextureReadMarginPx + 2;
+  return cv::Rect(roi.x - margin, roi.y - margin, roi.width + 2 * margin, roi.height + 2 * margin) &
+         frame;
+}
+
 class HullReconstructor final : public Reconstructor {
  public:
   HullReconstructor(const VoxelGrid& grid, const ReconstructOptions& options)
       : hull_(grid), options_(options) {}
 
   Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) override {
-    const auto start = std::chrono::steady_clock::now();
     if (!image.empty() && (image.cols != view.width_px || image.rows != view.height_px)) {
       return MakeError(ErrorCode::kBadInput,
                        fmt::format("frame is {}x{}, the view {}x{}", image.cols, image.rows,
                                    view.width_px, view.height_px));
     }
-    if (Expected<void> result = hull_.Integrate(mask, view); !result) {
-      return result;
+    return Add(mask, image, cv::Point(), view);
+  }
+
+  cv::Rect FrameWindow(const cv::Mat& mask, const View& view) const override {
+    return HullFrameWindow(hull_.grid(), mask, view);
+  }
+
+  Expected<void> IntegrateWindow(const cv::Mat& mask, const cv::Mat& image, cv::Point image_origin,
+                                 const View& view) override {
+    const cv::Rect window(image_origin, image.size());
+    const cv::Rect needed = HullFrameWindow(hull_.grid(), mask, view);
+    if (!image.empty() && ((window & cv::Rect(0, 0, view.width_px, view.height_px)) != window ||
+                           (window & needed) != needed)) {
+      return MakeError(ErrorCode::kBadInput,
+                       fmt::format("the frame's window {}x{} at ({}, {}) does not hold the "
+                                   "pixels {}x{} at ({}, {}) the texture may read",
+                                   image.cols, image.rows, image_origin.x, image_origin.y,
+                                   needed.width, needed.height, needed.x, needed.y));
     }
-    views_.push_back(view);
-    cv::Mat bgr;  // a copy: a camera may reuse its frame buffers
-    if (image.empty()) {
-      // no colour from this view
-    } else if (image.type() == CV_8UC3) {
-      bgr = options_.share_frames ? image : image.clone();
-    } else if (image.type() == CV_8UC1) {
-      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
-    } else if (image.type() == CV_8UC4) {
-      cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
-    }
-    images_.push_back(bgr);
-    Logger("reconstruct")
-        ->debug("hull: view {} carved in {:.1f} ms", hull_.view_count(),
-                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                    .count());
-    return {};
+    return Add(mask, image, image_origin, view);
   }
 
   Expected<Mesh> Finish() override {
@@ -77,12 +92,13 @@ class HullReconstructor final : public Reconstructor {
     if (mesh.faces.empty()) {
       return MakeError(ErrorCode::kInternal, "the visual hull is not empty but has no surface");
     }
+    if (options_.finish_once) hull_.ReleaseViews();
     if (std::any_of(images_.begin(), images_.end(), [](const cv::Mat& m) { return !m.empty(); })) {
       const auto texture_start = std::chrono::steady_clock::now();
       TextureOptions texture;
       texture.atlas = options_.texture;
       texture.texture_size_px = options_.texture_size_px;
-      Expected<TextureStats> textured = TextureMesh(&mesh, views_, images_, texture);
+      Expected<TextureStats> textured = TextureMesh(&mesh, views_, images_, texture, origins_);
       if (!textured) {
         return std::unexpected(textured.error());
       }
@@ -100,13 +116,53 @@ class HullReconstructor final : public Reconstructor {
   }
 
  private:
+  Expected<void> Add(const cv::Mat& mask, const cv::Mat& image, cv::Point image_origin,
+                     const View& view) {
+    const auto start = std::chrono::steady_clock::now();
+    if (Expected<void> result = hull_.Integrate(mask, view); !result) {
+      return result;
+    }
+    views_.push_back(view);
+    origins_.push_back(image_origin);
+    cv::Mat bgr;  // a copy: a camera may reuse its frame buffers
+    if (image.empty()) {
+      // no colour from this view
+    } else if (image.type() == CV_8UC3) {
+      bgr = options_.share_frames ? image : image.clone();
+    } else if (image.type() == CV_8UC1) {
+      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+    } else if (image.type() == CV_8UC4) {
+      cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+    }
+    images_.push_back(bgr);
+    Logger("reconstruct")
+        ->debug("hull: view {} carved in {:.1f} ms", hull_.view_count(),
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                    .count());
+    return {};
+  }
+
   VisualHull hull_;
   ReconstructOptions options_;
   std::vector<View> views_;
   std::vector<cv::Mat> images_;
+  std::vector<cv::Point> origins_;  // per view: the frame pixel of images_[k]'s (0, 0)
 };
 
 }  // namespace
+
+cv::Rect Reconstructor::FrameWindow(const cv::Mat& /*mask*/, const View& view) const {
+  return cv::Rect(0, 0, view.width_px, view.height_px);
+}
+
+Expected<void> Reconstructor::IntegrateWindow(const cv::Mat& mask, const cv::Mat& image,
+                                              cv::Point image_origin, const View& view) {
+  if (!image.empty() && (image_origin != cv::Point() || image.cols != view.width_px ||
+                         image.rows != view.height_px)) {
+    return MakeError(ErrorCode::kBadInput, "this method reads whole frames, not windows");
+  }
+  return Integrate(mask, image, view);
+}
 
 Expected<ReconstructOptions> ParseOptions(const config::Section& section) {
   ReconstructOptions options;

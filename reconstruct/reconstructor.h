@@ -46,6 +46,10 @@ struct ReconstructOptions {
   // never write to a frame afterwards (reconstruct --images); a camera may reuse its buffers, so
   // the scan keeps copies. Not a configuration key.
   bool share_frames = false;
+  // hull: Finish is called once, after the last Integrate: the hull frees its copies of the masks
+  // once the surface is placed, before the colours are made (reconstruct --images: less memory
+  // at the peak). Not a configuration key.
+  bool finish_once = false;
 };
 
 // Parses [reconstruct]: method ("hull" | "meridian"), meridian_row_step_px (1..256),
@@ -69,6 +73,21 @@ class Reconstructor {
   // mask size (or a non-empty frame's size) does not match the view. The hull takes frames of
   // 1, 3 (BGR) or 4 (BGRA) 8-bit channels; a frame of another type is not used for colour.
   virtual Expected<void> Integrate(const cv::Mat& mask, const cv::Mat& image, const View& view) = 0;
+
+  // The rectangle of a frame of `view` that the model's colours may be read from, for a view
+  // integrated with `mask`. The hull: the mask's bounding rectangle widened by how far a surface
+  // vertex can project from it (one voxel's projection at most: each lies on a grid edge from a
+  // voxel centre inside the silhouette) and by the texture's reach (kTextureReadMarginPx), within
+  // the frame; the whole frame when some of the volume lies outside the view (it keeps what it
+  // cannot see). Default: the whole frame.
+  virtual cv::Rect FrameWindow(const cv::Mat& mask, const View& view) const;
+
+  // Integrate with a window of the frame only: `image` holds the frame's pixels from
+  // `image_origin` on, and covers FrameWindow(mask, view). The model is the one the whole frame
+  // gives. Errors: Integrate's, and bad_input for a window that leaves the frame or does not
+  // cover FrameWindow (the meridian method reads whole frames).
+  virtual Expected<void> IntegrateWindow(const cv::Mat& mask, const cv::Mat& image,
+                                         cv::Point image_origin, const View& view);
 
   // Extracts the surface of everything integrated so far: a watertight, 2-manifold,
   // outward-oriented triangle mesh. Errors: bad_input when nothing remains (empty silhouettes or

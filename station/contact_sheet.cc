@@ -12,9 +12,18 @@ constexpr int kColumns = 6;
 }  // namespace
 
 cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask) {
+  return ContactSheetOutline(ContactSheetThumbnail(frame), mask);
+}
+
+cv::Mat ContactSheetThumbnail(const cv::Mat& frame) {
   const double scale = std::min(1.0, static_cast<double>(kTileWidthPx) / frame.cols);
-  cv::Mat tile;
-  cv::resize(frame, tile, cv::Size(), scale, scale, cv::INTER_AREA);
+  cv::Mat thumbnail;
+  cv::resize(frame, thumbnail, cv::Size(), scale, scale, cv::INTER_AREA);
+  return thumbnail;
+}
+
+cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask) {
+  cv::Mat tile = thumbnail.clone();
   cv::Mat small_mask;
   cv::resize(mask, small_mask, tile.size(), 0, 0, cv::INTER_NEAREST);
   std::vector<std::vector<cv::Point>> contours;

@@ -12,6 +12,12 @@ namespace revolve::station {
 // same size) drawn in green; an empty mask is marked with a red border.
 cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask);
 
+// ContactSheetTile in two steps, for a caller that drops the frame before the mask is final:
+// the frame's thumbnail, then the mask (the frame's size) outlined on a copy of it.
+// ContactSheetOutline(ContactSheetThumbnail(frame), mask) == ContactSheetTile(frame, mask).
+cv::Mat ContactSheetThumbnail(const cv::Mat& frame);
+cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask);
+
 // Tiles in rows of up to 6, each labelled with its stop number. An empty list gives a small
 // black image.
 cv::Mat AssembleContactSheet(const std::vector<cv::Mat>& tiles);

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -30,7 +31,33 @@ struct CarveResult {
   bool touches = false;
 };
 
-// Coarse carving of cell centres (see AutoVolumeOptions).
+// Whether the cell centre `x` survives (see AutoVolumeOptions). `first` names the view tried
+// first and becomes the view that carved `x`: a cell is carved whatever view carves it, and a
+// cell's neighbour is most often carved by the same view, so the views' order changes nothing
+// but the work.
+bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
+                  const Eigen::Vector3d& x, int seen_needed, std::size_t* first) {
+  int seen = 0;
+  for (std::size_t n = 0; n < views.size(); ++n) {
+    const std::size_t v = n == 0 ? *first : (n <= *first ? n - 1 : n);
+    const Matrix34d& p = views[v].pixel_from_object;
+    const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
+    if (!(h.z() > 0.0)) continue;
+    const double u = std::floor(h.x() / h.z() + 0.5);
+    const double w = std::floor(h.y() / h.z() + 0.5);
+    if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
+    ++seen;
+    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
+      *first = v;
+      return false;
+    }
+  }
+  return seen >= seen_needed;
+}
+
+// Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
+// index range of the survivors is an exact minimum and maximum over the layers' (and over each
+// row's first and last survivor).
 CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
                         const Box& box, const AutoVolumeOptions& options) {
   CarveResult result;
@@ -43,35 +70,51 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
   const int seen_needed = std::max(
       1,
       static_cast<int>(std::ceil(options.min_seen_fraction * static_cast<double>(views.size()))));
-  for (int k = 0; k < result.dims.z(); ++k) {
-    for (int j = 0; j < result.dims.y(); ++j) {
-      for (int i = 0; i < result.dims.x(); ++i) {
-        const Eigen::Vector3d x =
-            result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
-        int seen = 0;
-        bool carved = false;
-        for (std::size_t v = 0; v < views.size() && !carved; ++v) {
-          const Matrix34d& p = views[v].pixel_from_object;
-          const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
-          if (!(h.z() > 0.0)) continue;
-          const double u = std::floor(h.x() / h.z() + 0.5);
-          const double w = std::floor(h.y() / h.z() + 0.5);
-          if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
-          ++seen;
-          if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
-            carved = true;
-          }
-        }
-        if (carved || seen < seen_needed) continue;
-        const Eigen::Vector3i c(i, j, k);
-        if (!result.any) {
-          result.lo = result.hi = c;
-          result.any = true;
-        } else {
-          result.lo = result.lo.cwiseMin(c);
-          result.hi = result.hi.cwiseMax(c);
-        }
+  struct Layer {
+    Eigen::Vector3i lo = Eigen::Vector3i::Constant(-1);
+    Eigen::Vector3i hi = Eigen::Vector3i::Constant(-1);
+    bool any = false;
+  };
+  std::vector<Layer> layers(static_cast<std::size_t>(result.dims.z()));
+  ParallelFor(0, layers.size(), [&](std::size_t layer) {
+    const int k = static_cast<int>(layer);
+    Layer& out = layers[layer];
+    std::size_t first = 0;
+    const auto survives = [&](int i, int j) {
+      const Eigen::Vector3d x =
+          result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
+      return CellSurvives(masks, views, x, seen_needed, &first);
+    };
+    const auto add = [&](const Eigen::Vector3i& c) {
+      if (!out.any) {
+        out.lo = out.hi = c;
+        out.any = true;
+      } else {
+        out.lo = out.lo.cwiseMin(c);
+        out.hi = out.hi.cwiseMax(c);
       }
+    };
+    // Only the survivors' range is wanted: each row's first and last survivor, found from its
+    // two ends; the cells between them are not tested.
+    for (int j = 0; j < result.dims.y(); ++j) {
+      int i_first = 0;
+      while (i_first < result.dims.x() && !survives(i_first, j)) ++i_first;
+      if (i_first == result.dims.x()) continue;
+      int i_last = result.dims.x() - 1;
+      while (i_last > i_first && !survives(i_last, j)) --i_last;
+      add(Eigen::Vector3i(i_first, j, k));
+      add(Eigen::Vector3i(i_last, j, k));
+    }
+  });
+  for (const Layer& layer : layers) {
+    if (!layer.any) continue;
+    if (!result.any) {
+      result.lo = layer.lo;
+      result.hi = layer.hi;
+      result.any = true;
+    } else {
+      result.lo = result.lo.cwiseMin(layer.lo);
+      result.hi = result.hi.cwiseMax(layer.hi);
     }
   }
   if (result.any) {
@@ -144,8 +187,12 @@ Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
   Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> directions;
-  for (std::size_t i = 0; i < masks.size() && i < views.size(); ++i) {
-    const cv::Moments moments = cv::moments(masks[i], /*binaryImage=*/true);
+  // Each mask's moments on all cores; summed in mask order.
+  std::vector<cv::Moments> all_moments(std::min(masks.size(), views.size()));
+  ParallelFor(0, all_moments.size(),
+              [&](std::size_t i) { all_moments[i] = cv::moments(masks[i], /*binaryImage=*/true); });
+  for (std::size_t i = 0; i < all_moments.size(); ++i) {
+    const cv::Moments& moments = all_moments[i];
     if (moments.m00 <= 0.0) continue;
     const std::optional<Ray> ray = BackProject(
         views[i], Eigen::Vector2d(moments.m10 / moments.m00, moments.m01 / moments.m00));
@@ -193,8 +240,10 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
 
   // The search box: the silhouettes' extents around the centre.
   double radius = 0.0;
+  std::vector<cv::Rect> rects(masks.size());
+  ParallelFor(0, masks.size(), [&](std::size_t i) { rects[i] = cv::boundingRect(masks[i]); });
   for (std::size_t i = 0; i < masks.size(); ++i) {
-    const cv::Rect rect = cv::boundingRect(masks[i]);
+    const cv::Rect& rect = rects[i];
     if (rect.area() == 0) continue;
     for (const Eigen::Vector2d& corner :
          {Eigen::Vector2d(rect.x - 0.5, rect.y - 0.5),

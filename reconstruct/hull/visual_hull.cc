@@ -91,6 +91,38 @@ Expected<VoxelGrid> VoxelGrid::FromBox(const Eigen::Vector3d& bbox_min_mm,
   return grid;
 }
 
+std::optional<double> VoxelStepBoundPx(const VoxelGrid& grid, const View& view) {
+  // u = a / w with a and w affine in X: du/dX_k = (P0k - u P2k) / w. The box, wholly in front
+  // of the camera, projects into the hull of its corners' projections and w is least at a
+  // corner, so |u|, |v| <= their largest at the corners and w >= its least there.
+  const Matrix34d& p = view.pixel_from_object;
+  const Eigen::Vector3d lo = grid.origin_mm;
+  const Eigen::Vector3d hi = grid.MaxCorner();
+  double max_u = 0.0;
+  double max_v = 0.0;
+  double min_w = std::numeric_limits<double>::infinity();
+  for (int corner = 0; corner < 8; ++corner) {
+    const Eigen::Vector3d x((corner & 1) ? hi.x() : lo.x(), (corner & 2) ? hi.y() : lo.y(),
+                            (corner & 4) ? hi.z() : lo.z());
+    const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
+    if (!(h.z() > 0.0)) return std::nullopt;
+    const double u = h.x() / h.z();
+    const double v = h.y() / h.z();
+    if (!(u >= -0.5 && v >= -0.5 && u < view.width_px - 0.5 && v < view.height_px - 0.5)) {
+      return std::nullopt;
+    }
+    max_u = std::max(max_u, std::abs(u));
+    max_v = std::max(max_v, std::abs(v));
+    min_w = std::min(min_w, h.z());
+  }
+  double step = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const double z = std::abs(p(2, k));
+    step = std::max(step, std::max(std::abs(p(0, k)) + max_u * z, std::abs(p(1, k)) + max_v * z));
+  }
+  return step * grid.voxel_mm / min_w;
+}
+
 VisualHull::VisualHull(const VoxelGrid& grid) : grid_(grid) {
   brick_dims_ = (grid_.dims + Eigen::Vector3i::Constant(kBrick - 1)) / kBrick;
   bricks_.assign(static_cast<std::size_t>(brick_dims_.prod()), ~std::uint64_t{0});

@@ -66,6 +66,12 @@ struct VoxelGrid {
   }
 };
 
+// An upper bound (px) on how far the projection in `view` of a point of the grid's box moves when
+// the point moves by up to one voxel along an axis (a voxel centre to its neighbour's). nullopt
+// when some of the box is not seen by the view: a corner on or behind the camera plane, or whose
+// nearest pixel lies outside the image.
+std::optional<double> VoxelStepBoundPx(const VoxelGrid& grid, const View& view);
+
 struct HullSurfaceOptions {
   // Each vertex at the exact crossing of its grid edge with the silhouette cones (true), or at
   // the edge's midpoint (false).
@@ -116,6 +122,11 @@ class VisualHull {
   // The reference: the point test on every still-occupied voxel. Same contract and same result
   // as Integrate, 20-30x slower at 256^3; used by tests and benchmarks.
   Expected<void> IntegrateNaive(const cv::Mat& mask, const View& view);
+
+  // Frees the integrated views (their masks: width x height bytes each), keeping the occupancy:
+  // for a caller done with ExtractSurface. Afterwards the hull is as if no view had been
+  // integrated but for its occupancy (view_count() is 0).
+  void ReleaseViews() { std::vector<ViewData>().swap(views_); }
 
   // Occupancy of voxel (i, j, k); false outside the grid.
   bool Occupied(int i, int j, int k) const;

@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "reconstruct/image_set.h"
 #include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
@@ -301,7 +302,8 @@ double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
 }
 
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks) {
+                                         const std::vector<cv::Mat>& masks,
+                                         const std::vector<cv::Point>& mask_origins) {
   ReprojectionStats stats;
   // The views on all cores, each IoU in its slot; the sum and the worst in view order.
   stats.iou.resize(views.size());
@@ -309,17 +311,26 @@ ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<Vie
   ParallelFor(0, views.size(), [&](std::size_t i) {
     std::optional<BoxedSilhouette> outline;
     if (!edges.empty()) outline = SilhouetteFromOutline(mesh, edges, views[i]);
+    const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     if (!outline) {
-      stats.iou[i] = MaskIoU(RenderSilhouette(mesh, views[i], !edges.empty()), masks[i]);
+      const cv::Mat rendered = RenderSilhouette(mesh, views[i], !edges.empty());
+      stats.iou[i] = MaskIoU(rendered, mask_origins.empty()
+                                           ? masks[i]
+                                           : WholeFromWindow(masks[i], origin, rendered.size()));
       return;
     }
-    // MaskIoU's counts: none of the silhouette lies outside its box.
+    // MaskIoU's counts: none of the silhouette lies outside its box, none of the mask outside
+    // its window.
     std::int64_t both = 0;
     std::int64_t silhouette = 0;
     if (!outline->box.empty()) {
-      cv::Mat overlap;
-      cv::min(outline->pixels, masks[i](outline->box), overlap);
-      both = cv::countNonZero(overlap);
+      const cv::Rect overlap_box = outline->box & cv::Rect(origin, masks[i].size());
+      if (!overlap_box.empty()) {
+        cv::Mat overlap;
+        cv::min(outline->pixels(overlap_box - outline->box.tl()), masks[i](overlap_box - origin),
+                overlap);
+        both = cv::countNonZero(overlap);
+      }
       silhouette = cv::countNonZero(outline->pixels);
     }
     const std::int64_t either = silhouette + cv::countNonZero(masks[i]) - both;

@@ -42,9 +42,11 @@ struct ReprojectionStats {
 // its outline instead, the edges between faces of either winding (the same pixels but for pixel
 // centres within rounding of the outline; a few percent of drawing every face), in views that
 // see every vertex in front. Precondition: masks.size() == views.size(), each mask of its view's
-// size.
+// size, or (mask_origins not empty) a window of it: mask i holds its view's mask from
+// mask_origins[i] on, within the view's image, and none of the mask lies outside.
 ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks);
+                                         const std::vector<cv::Mat>& masks,
+                                         const std::vector<cv::Point>& mask_origins = {});
 
 // Inside test of a solid (true = inside).
 using InsideTest = std::function<bool(const Eigen::Vector3d&)>;

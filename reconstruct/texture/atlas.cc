@@ -317,8 +317,10 @@ Expected<Packing> PackCharts(const std::vector<Rect>& source, int max_side) {
   return out;
 }
 
+static_assert(kChartMarginPx + 1 <= kTextureReadMarginPx, "texture.h promises to read no further");
+
 cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-                  const std::vector<cv::Mat>& images) {
+                  const std::vector<cv::Mat>& images, const std::vector<cv::Point>& origins) {
   const std::vector<Rect>& placed = packing.placed;
   cv::Mat atlas(packing.height, packing.width, CV_8UC3, cv::Scalar(0, 0, 0));
   atlas(cv::Rect(placed[charts.count].x, placed[charts.count].y, kUnseenPatch, kUnseenPatch))
@@ -327,7 +329,8 @@ cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const P
   ParallelFor(0, charts.count, [&](std::size_t c) {
     const Rect& s = source[c];
     const Rect& d = placed[c];
-    const cv::Mat from = images[charts.view[c]](cv::Rect(s.x, s.y, s.w, s.h));
+    const cv::Point& origin = origins[charts.view[c]];
+    const cv::Mat from = images[charts.view[c]](cv::Rect(s.x - origin.x, s.y - origin.y, s.w, s.h));
     cv::Mat to = atlas(cv::Rect(d.x, d.y, d.w, d.h));
     if (s.w == d.w && s.h == d.h) {
       from.copyTo(to);

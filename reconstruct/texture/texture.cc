@@ -38,8 +38,8 @@ using texture_internal::ViewRanking;
 
 // Errors (bad_input) for inputs TextureMesh refuses.
 Expected<void> CheckInputs(const std::vector<View>& views, const std::vector<cv::Mat>& images,
-                           const TextureOptions& options) {
-  if (views.size() != images.size()) {
+                           const TextureOptions& options, const std::vector<cv::Point>& origins) {
+  if (views.size() != images.size() || (!origins.empty() && origins.size() != views.size())) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("{} views but {} images", views.size(), images.size()));
   }
@@ -49,8 +49,11 @@ Expected<void> CheckInputs(const std::vector<View>& views, const std::vector<cv:
                                                        options.texture_size_px));
   }
   for (std::size_t k = 0; k < views.size(); ++k) {
-    if (!images[k].empty() && (images[k].type() != CV_8UC3 || images[k].cols != views[k].width_px ||
-                               images[k].rows != views[k].height_px)) {
+    const cv::Point origin = origins.empty() ? cv::Point() : origins[k];
+    const cv::Rect frame(0, 0, views[k].width_px, views[k].height_px);
+    const cv::Rect window(origin, images[k].size());
+    if (!images[k].empty() && (images[k].type() != CV_8UC3 || (window & frame) != window ||
+                               (origins.empty() && window != frame))) {
       return MakeError(ErrorCode::kBadInput,
                        fmt::format("image {} must be CV_8UC3 {}x{} (its view's size)", k,
                                    views[k].width_px, views[k].height_px));
@@ -90,8 +93,9 @@ std::int64_t ColorVertices(const std::vector<Float4>& color_sum, Mesh* mesh) {
 
 Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
                                    const std::vector<cv::Mat>& images,
-                                   const TextureOptions& options) {
-  if (Expected<void> valid = CheckInputs(views, images, options); !valid) {
+                                   const TextureOptions& options,
+                                   const std::vector<cv::Point>& image_origins) {
+  if (Expected<void> valid = CheckInputs(views, images, options, image_origins); !valid) {
     return std::unexpected(valid.error());
   }
   TextureStats stats;
@@ -128,9 +132,11 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
       },
       [&] { clusters = ClusterVertices(mesh->vertices, surface); });
 
-  const Sightings seen = SweepViews(SweepInputs{*mesh, surface, geometry, images, ranking, clusters,
-                                                faces_per_view, vertices_per_view, cos_min, max_tan,
-                                                options.atlas, options.vertex_colors});
+  const std::vector<cv::Point> origins =
+      image_origins.empty() ? std::vector<cv::Point>(views.size()) : image_origins;
+  const Sightings seen = SweepViews(
+      SweepInputs{*mesh, surface, geometry, images, origins, ranking, clusters, faces_per_view,
+                  vertices_per_view, cos_min, max_tan, options.atlas, options.vertex_colors});
   stats.views_used = seen.views_used;
   if (options.vertex_colors) {
     stats.unseen_vertices = ColorVertices(seen.color_sum, mesh);
@@ -150,7 +156,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     return std::unexpected(packing.error());
   }
   stats.atlas_scale = packing->scale;
-  cv::Mat atlas = DrawAtlas(charts, source, *packing, images);
+  cv::Mat atlas = DrawAtlas(charts, source, *packing, images, origins);
   AssignUvs(charts, std::move(projected), *packing, mesh);
   mesh->texture = atlas;
   return stats;

@@ -57,13 +57,22 @@ struct TextureStats {
   std::int64_t unseen_vertices = 0;
 };
 
+// How far beyond the projections of a mesh's vertices TextureMesh reads its images (px): the
+// charts' margin and bilinear sampling's second pixel.
+inline constexpr int kTextureReadMarginPx = 3;
+
 // Fills mesh->colors (options.vertex_colors) and mesh->uvs, uv_faces and texture
 // (options.atlas) from `images` (CV_8UC3 BGR, one per view, of the view's size; an empty image
-// leaves its view out). Errors: bad_input when the counts differ, an image has the wrong type or
-// size, or texture_size_px is out of range; the mesh is then unchanged.
+// leaves its view out). `image_origins` (empty, or one per view): image k holds only a window of
+// its view's frame, the frame's pixels from image_origins[k] on; the result is that of the whole
+// frames when each window holds every pixel within kTextureReadMarginPx of the projections of
+// the mesh's vertices (clamped to the frame; reconstruct/reconstructor.h's FrameWindow).
+// Errors: bad_input when the counts differ, an image has the wrong type or size (or its window
+// leaves the frame), or texture_size_px is out of range; the mesh is then unchanged.
 Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
                                    const std::vector<cv::Mat>& images,
-                                   const TextureOptions& options = {});
+                                   const TextureOptions& options = {},
+                                   const std::vector<cv::Point>& image_origins = {});
 
 // Draws the mesh as `view` sees it: z-buffered, textured (perspective-correct uvs, bilinear
 // sampling) when it has a texture, else with its vertex colours (grey without), no lighting.

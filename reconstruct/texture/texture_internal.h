@@ -257,6 +257,7 @@ struct SweepInputs {
   const Surface& surface;
   const std::vector<ViewGeometry>& geometry;
   const std::vector<cv::Mat>& images;
+  const std::vector<cv::Point>& origins;  // per view: the frame pixel of images[k]'s (0, 0)
   const ViewRanking& ranking;
   const VertexClusters& clusters;
   const PerView<std::int64_t>& faces;
@@ -318,8 +319,9 @@ struct Packing {
 Expected<Packing> PackCharts(const std::vector<Rect>& source, int max_side);
 
 // The atlas image: each chart's pixels (resized when scaled), the mid-grey patch, black between.
+// `origins`: per view, the frame pixel of images[k]'s (0, 0).
 cv::Mat DrawAtlas(const Charts& charts, const std::vector<Rect>& source, const Packing& packing,
-                  const std::vector<cv::Mat>& images);
+                  const std::vector<cv::Mat>& images, const std::vector<cv::Point>& origins);
 
 // Sets mesh->uvs and uv_faces: one uv per (chart, vertex), the projection into the chart's view
 // mapped into its placed rectangle, and the unseen patch's centre for the unseen faces.

@@ -480,10 +480,14 @@ class ViewSweep {
       seen_.face_cos[static_cast<std::size_t>(p.index) * kCandidates + p.slot] = p.cos_angle;
     }
     const cv::Mat& image = in_.images[k];
+    // Frame coordinates less the window's origin: exact (an integer off a float no smaller).
+    const auto ox = static_cast<float>(in_.origins[k].x);
+    const auto oy = static_cast<float>(in_.origins[k].y);
     samples->reserve(static_cast<std::size_t>(vertex_count_));
     for (const VertexPending& p : PendingVertices()) {
       if (!(p.depth <= cells.At(p.u, p.v) + p.tolerance)) continue;
-      samples->push_back(VertexSample{p.index, p.weight * SampleBilinearWithOne(image, p.u, p.v)});
+      samples->push_back(
+          VertexSample{p.index, p.weight * SampleBilinearWithOne(image, p.u - ox, p.v - oy)});
     }
   }
 

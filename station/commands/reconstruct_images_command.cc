@@ -1,12 +1,17 @@
 #include "station/commands/reconstruct_images_command.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <ostream>
+#include <thread>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "base/atomic_file.h"
 #include "base/log.h"
@@ -21,6 +26,7 @@
 #include "reconstruct/reconstructor.h"
 #include "station/commands/scan_command.h"
 #include "station/commands/set_masks.h"
+#include "station/contact_sheet.h"
 #include "station/report_json.h"
 #include "station/timing.h"
 
@@ -34,6 +40,10 @@ namespace rc = revolve::reconstruct;
 constexpr double kMinAgreeingIoU = 0.9;
 // --bbox coordinates beyond this are refused (a million pixels or metres is no turntable).
 constexpr double kMaxBoxCoordinate = 1e6;
+// The hull keeps each photo's pixels this far around its silhouette's rectangle (less memory);
+// a view whose texture may read further (Reconstructor::FrameWindow: coarse voxels, a volume
+// partly out of view) reads its photo again.
+constexpr int kFrameMarginPx = 24;
 
 // An option out of range: the message, or empty when the options are usable.
 std::string CheckOptions(const ReconstructImagesOptions& options) {
@@ -104,12 +114,12 @@ class ImagesRun {
     // The masks, for a person to check, once: those the carving uses, or the segmentation's
     // when the run stops before (why it stopped is then told, the masks written).
     if (!judged) {
-      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, frames_, masks_));
+      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize()));
       return std::unexpected(judged.error());
     }
     REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
-    REVOLVE_RETURN_IF_ERROR(Timed("write_ms", [&] { return WriteFiles(); }));
-    REVOLVE_RETURN_IF_ERROR(Timed("metrics_ms", [&] { return Measure(); }));
+    REVOLVE_RETURN_IF_ERROR(WriteFilesWhileMeasuring());
+    Describe();
     times_["total_ms"] = MsSince(start);
     report_["times_ms"] = times_;
     REVOLVE_RETURN_IF_ERROR(WriteReportAndSay());
@@ -147,7 +157,18 @@ class ImagesRun {
     set_options.step_deg = options_.step_deg;
     set_options.segmentation.threshold = options_.threshold;
     set_options.segment_photos = legacy_threshold_;
+    // The hull reads only a window of each photo; the meridian method whole photos. The contact
+    // sheet's thumbnails are made from the whole photos.
+    set_options.frame_margin_px = options_.method == "hull" ? kFrameMarginPx : -1;
+    std::mutex thumbnails_mutex;
+    set_options.on_photo = [&](std::size_t index, const cv::Mat& photo) {
+      cv::Mat thumbnail = ContactSheetThumbnail(photo);
+      const std::lock_guard<std::mutex> lock(thumbnails_mutex);
+      if (thumbnails_.size() <= index) thumbnails_.resize(index + 1);
+      thumbnails_[index] = std::move(thumbnail);
+    };
     REVOLVE_ASSIGN_OR_RETURN(set_, rc::LoadImageSet(options_.images, set_options));
+    thumbnails_.resize(set_.images.size());
     photos_ = set_.kind == rc::ImageKind::kPhoto;
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
                         photos_ ? "photos" : "binary silhouettes", set_.width_px, set_.height_px,
@@ -155,7 +176,6 @@ class ImagesRun {
     for (rc::SetImage& image : set_.images) {
       names_.push_back(image.file_name);
       masks_.push_back(std::move(image.mask));  // held once: the consensus replaces them
-      frames_.push_back(image.image);
     }
     problems_.assign(masks_.size(), std::string());
     return {};
@@ -166,7 +186,6 @@ class ImagesRun {
   // references to the frames as it goes, not the copies given to WriteMasks. Each step's time is
   // its own (they overlap).
   Expected<void> WriteMasksWhileReconstructing() {
-    const std::vector<cv::Mat> frames = frames_;
     Expected<void> written;
     Expected<void> made;
     double masks_ms = 0.0;
@@ -174,7 +193,8 @@ class ImagesRun {
     rc::ParallelInvoke(
         [&] {
           const Clock::time_point t = Clock::now();
-          written = WriteMasks(options_.out, names_, frames, masks_);
+          written =
+              WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), mask_origins_);
           masks_ms = MsSince(t);
         },
         [&] {
@@ -191,11 +211,25 @@ class ImagesRun {
   // Silhouettes: segmented here (photos).
   Expected<void> Segment() {
     if (photos_ && !legacy_threshold_) {
+      std::vector<cv::Mat> photos;
+      photos.reserve(set_.images.size());
+      for (const rc::SetImage& image : set_.images) photos.push_back(image.image);
       SetMasks segmented;
-      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(frames_, *segment_options_, out_));
+      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(photos, *segment_options_, out_));
+      photos.clear();
       masks_ = std::move(segmented.masks);
       problems_ = std::move(segmented.problems);
       report_["segmentation"] = segmented.report;
+      if (options_.method == "hull") {
+        // Each photo cut to its window now that its mask is known (as Load does for --segment
+        // threshold).
+        rc::ParallelFor(0, set_.images.size(), [&](std::size_t i) {
+          rc::SetImage& image = set_.images[i];
+          const cv::Rect window = rc::FrameWindow(masks_[i], kFrameMarginPx);
+          image.image = image.image(window).clone();
+          image.image_origin = window.tl();
+        });
+      }
     } else {
       report_["segmentation"] = {
           {"method", photos_ ? "threshold" : "none (binary silhouettes)"},
@@ -316,7 +350,23 @@ class ImagesRun {
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
     agreement_ = std::move(*agreement);
     CollectUsable();
+    // From here each mask is held as its bounding rectangle (a fraction of the image): whole
+    // masks are made again one at a time where needed.
+    mask_origins_.assign(masks_.size(), cv::Point());
+    rc::ParallelFor(0, masks_.size(), [&](std::size_t i) {
+      const cv::Rect window = rc::FrameWindow(masks_[i], 0);
+      masks_[i] = masks_[i](window).clone();
+      mask_origins_[i] = window.tl();
+    });
     return {};
+  }
+
+  cv::Size FrameSize() const { return {set_.width_px, set_.height_px}; }
+
+  // Mask i whole (its window's pixels, zeros around them).
+  cv::Mat WholeMask(std::size_t i) const {
+    return mask_origins_.empty() ? masks_[i]
+                                 : rc::WholeFromWindow(masks_[i], mask_origins_[i], FrameSize());
   }
 
   Expected<void> Reconstruct() {
@@ -331,21 +381,44 @@ class ImagesRun {
     // frame is its own.
     reconstruct_options.flat_bottom = false;
     reconstruct_options.share_frames = true;  // the set's frames are not written to again
+    reconstruct_options.finish_once = true;
     reconstruct_options.meridian_row_step_px = options_.row_step_px;
     reconstruct_options.meridian_both_sides = options_.both_sides;
     std::unique_ptr<rc::Reconstructor> reconstructor;
     REVOLVE_ASSIGN_OR_RETURN(reconstructor, rc::Create(reconstruct_options));
     for (std::size_t i : usable_) {
+      rc::SetImage& image = set_.images[i];
+      const cv::Mat mask = WholeMask(i);
+      REVOLVE_RETURN_IF_ERROR(CoverWindow(*reconstructor, mask, i));
       if (Expected<void> done =
-              reconstructor->Integrate(masks_[i], set_.images[i].image, views_[i]);
+              reconstructor->IntegrateWindow(mask, image.image, image.image_origin, views_[i]);
           !done) {
-        return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
+        return std::unexpected(WithContext(done.error(), image.path.string()));
       }
-      // The reconstructor holds the frame now; the set's references go.
-      set_.images[i].image.release();
-      frames_[i].release();
+      // The reconstructor holds the frame now; the set's reference goes.
+      image.image.release();
     }
     REVOLVE_ASSIGN_OR_RETURN(mesh_, reconstructor->Finish());
+    return {};
+  }
+
+  // Reads photo i again, when the window of it the set holds misses some of the pixels the
+  // reconstructor may read (Reconstructor::FrameWindow), and keeps that window of it.
+  Expected<void> CoverWindow(const rc::Reconstructor& reconstructor, const cv::Mat& mask,
+                             std::size_t i) {
+    rc::SetImage& image = set_.images[i];
+    if (image.image.empty()) return {};
+    const cv::Rect needed = reconstructor.FrameWindow(mask, views_[i]);
+    if ((cv::Rect(image.image_origin, image.image.size()) & needed) == needed) return {};
+    Logger("station")->debug("{}: read again for the pixels at ({}, {}) {}x{}", image.file_name,
+                             needed.x, needed.y, needed.width, needed.height);
+    cv::Mat photo;
+    REVOLVE_ASSIGN_OR_RETURN(
+        photo, rc::ReadImage8(image.path, static_cast<std::int64_t>(options_.max_image_mp * 1e6),
+                              cv::Size(set_.width_px, set_.height_px)));
+    if (photo.channels() == 1) cv::cvtColor(photo, photo, cv::COLOR_GRAY2BGR);
+    image.image = photo(needed).clone();
+    image.image_origin = needed.tl();
     return {};
   }
 
@@ -353,7 +426,7 @@ class ImagesRun {
     rc::MeridianReconstructor meridian(rc::MeridianOptions{
         options_.row_step_px, options_.both_sides, rc::ReconstructOptions{}.texture_size_px});
     for (std::size_t i : usable_) {
-      if (Expected<void> done = meridian.Integrate(masks_[i], set_.images[i].image, views_[i]);
+      if (Expected<void> done = meridian.Integrate(WholeMask(i), set_.images[i].image, views_[i]);
           !done) {
         return std::unexpected(WithContext(done.error(), set_.images[i].path.string()));
       }
@@ -378,10 +451,35 @@ class ImagesRun {
     return {};
   }
 
-  Expected<void> Measure() {
+  // The model files are written while the model is measured: the writing on a thread of its own
+  // (its writers wait for the disk much of their time; a pool thread waiting would leave its
+  // core idle), the measuring on the pool. Each step's time is its own (they overlap).
+  Expected<void> WriteFilesWhileMeasuring() {
+    Expected<void> written;
+    double write_ms = 0.0;
+    {
+      const std::jthread writer([&] {
+        const Clock::time_point t = Clock::now();
+        written = WriteFiles();
+        write_ms = MsSince(t);
+      });
+      const Clock::time_point t = Clock::now();
+      Measure();
+      times_["metrics_ms"] = MsSince(t);
+    }
+    times_["write_ms"] = write_ms;
+    return written;
+  }
+
+  void Measure() {
     // Independent, each on all cores.
-    rc::ParallelInvoke([&] { stats_ = rc::ComputeStats(mesh_); },
-                       [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_); });
+    rc::ParallelInvoke(
+        [&] { stats_ = rc::ComputeStats(mesh_); },
+        [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_, mask_origins_); });
+  }
+
+  // report.json's model and reprojection sections.
+  void Describe() {
     nlohmann::json file_names = nlohmann::json::array();
     for (const std::filesystem::path& f : files_) {
       file_names.push_back(std::filesystem::relative(f, options_.out).string());
@@ -411,7 +509,6 @@ class ImagesRun {
                                {"min_iou", reprojection_.min},
                                {"worst_image", WorstName()},
                                {"per_view", per_view}};
-    return {};
   }
 
   const std::string& WorstName() const {
@@ -448,8 +545,9 @@ class ImagesRun {
   rc::ImageSet set_;
   std::vector<std::string> names_;
   std::vector<cv::Mat> masks_;
-  std::vector<cv::Mat> frames_;
-  std::vector<std::string> problems_;  // per image: why it is left out, empty when usable
+  std::vector<cv::Point> mask_origins_;  // empty: masks_ whole; else each mask's window origin
+  std::vector<cv::Mat> thumbnails_;      // the contact sheet's, per photo (empty for silhouettes)
+  std::vector<std::string> problems_;    // per image: why it is left out, empty when usable
   std::vector<std::size_t> usable_;
   std::vector<View> views_;
   Eigen::Vector3d box_min_ = Eigen::Vector3d::Zero();
@@ -470,6 +568,11 @@ int RunReconstructImages(const ReconstructImagesOptions& options, std::ostream& 
     err << "revolve reconstruct: " << problem << "\n";
     return kExitUsage;
   }
+  // One malloc arena for the process's threads: glibc gives threads arenas of their own, and
+  // what one thread frees stays in its arena for that thread's next buffers; the pool's threads
+  // take turns with the photos, masks and the texture's arrays, so one arena holds ~20 MB less
+  // at the peak (docs/performance.md, ninth pass), and no slower measured.
+  mallopt(M_ARENA_MAX, 1);
   std::error_code ec;
   const bool out_existed = std::filesystem::exists(options.out, ec);
   Expected<nlohmann::json> report = ImagesRun(options, out).Run();

@@ -12,6 +12,7 @@
 #include "capture/segment/set_segmentation.h"
 #include "config/config.h"
 #include "reconstruct/hull/silhouette_consensus.h"
+#include "reconstruct/image_set.h"
 #include "reconstruct/parallel.h"
 #include "station/contact_sheet.h"
 
@@ -82,8 +83,9 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
 }
 
 Expected<void> WriteMasks(const std::filesystem::path& out_dir,
-                          const std::vector<std::string>& names, const std::vector<cv::Mat>& photos,
-                          const std::vector<cv::Mat>& masks) {
+                          const std::vector<std::string>& names,
+                          const std::vector<cv::Mat>& thumbnails, const std::vector<cv::Mat>& masks,
+                          cv::Size size, const std::vector<cv::Point>& mask_origins) {
   const std::filesystem::path dir = out_dir / "masks";
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -96,19 +98,21 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   std::vector<cv::Mat> tiles(masks.size());
   std::vector<Expected<void>> written(masks.size());
   reconstruct::ParallelFor(0, masks.size(), [&](std::size_t i) {
-    const cv::Mat mask =
-        masks[i].empty() ? cv::Mat::zeros(masks.front().size(), CV_8UC1) : masks[i];
+    const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(size, CV_8UC1)
+                         : mask_origins.empty()
+                             ? masks[i]
+                             : reconstruct::WholeFromWindow(masks[i], mask_origins[i], size);
     const std::filesystem::path path =
         dir / (std::filesystem::path(names[i]).stem().string() + ".png");
     written[i] = WritePngFile(path, mask);
     if (!written[i]) return;
-    cv::Mat shown;
-    if (i < photos.size() && !photos[i].empty()) {
-      shown = photos[i];
+    if (i < thumbnails.size() && !thumbnails[i].empty()) {
+      tiles[i] = ContactSheetOutline(thumbnails[i], mask);
     } else {
+      cv::Mat shown;
       cv::cvtColor(mask, shown, cv::COLOR_GRAY2BGR);
+      tiles[i] = ContactSheetTile(shown, mask);
     }
-    tiles[i] = ContactSheetTile(shown, mask);
   });
   for (const Expected<void>& w : written) {
     if (!w) return w;

@@ -1,6 +1,8 @@
 // The references the whole `revolve reconstruct --images` is timed against (docs/performance.md),
 // each on one thread, as a process of its own:
 //   images_reference decode DIR            decodes every image of DIR (cv::imread), nothing more
+//   images_reference read DIR              reads every image of DIR as revolve does (ReadImageFile:
+//                                          header checks, one strict decode), nothing more
 //   images_reference naive-carve DIR RES   loads DIR's binary silhouettes, finds the carving volume
 //                                          and carves RES^3 voxels per voxel (thesis cameras, 10
 //                                          degrees a view); writes nothing
@@ -12,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "base/image_files.h"
+#include "base/image_read.h"
 #include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/image_set.h"
@@ -32,6 +35,25 @@ int Decode(const std::filesystem::path& dir) {
     pixels += cv::imread(file.string(), cv::IMREAD_UNCHANGED).total();
   }
   std::printf("decoded %zu images, %zu pixels\n", files->size(), pixels);
+  return 0;
+}
+
+int Read(const std::filesystem::path& dir) {
+  const revolve::Expected<std::vector<std::filesystem::path>> files = revolve::ListImageFiles(dir);
+  if (!files) {
+    std::fprintf(stderr, "%s\n", files.error().message.c_str());
+    return 1;
+  }
+  std::size_t pixels = 0;
+  for (const std::filesystem::path& file : *files) {
+    const revolve::Expected<cv::Mat> image = revolve::ReadImageFile(file);
+    if (!image) {
+      std::fprintf(stderr, "%s\n", image.error().message.c_str());
+      return 1;
+    }
+    pixels += image->total();
+  }
+  std::printf("read %zu images, %zu pixels\n", files->size(), pixels);
   return 0;
 }
 
@@ -63,7 +85,9 @@ int main(int argc, char** argv) {
   const rc::ThreadLimit one_thread(1);
   const std::string mode = argc > 1 ? argv[1] : "";
   if (mode == "decode" && argc == 3) return Decode(argv[2]);
+  if (mode == "read" && argc == 3) return Read(argv[2]);
   if (mode == "naive-carve" && argc == 4) return NaiveCarve(argv[2], std::atoi(argv[3]));
-  std::fprintf(stderr, "usage: images_reference decode DIR | naive-carve DIR RESOLUTION\n");
+  std::fprintf(stderr,
+               "usage: images_reference decode DIR | read DIR | naive-carve DIR RESOLUTION\n");
   return 2;
 }

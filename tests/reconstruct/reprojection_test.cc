@@ -1,6 +1,7 @@
 // Silhouette reprojection and volume IoU (reconstruct/metrics/reprojection.h) on meshes whose
 // silhouettes and volumes are known.
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "reconstruct/cameras/views.h"
 #include "reconstruct/metrics/reprojection.h"
@@ -42,6 +43,44 @@ TEST(Reprojection, BoxSilhouetteInTheThesisView) {
   const ReprojectionStats stats = SilhouetteReprojection(box, {view, view}, {silhouette, half});
   EXPECT_NEAR(stats.mean, 0.75, 1e-12);
   EXPECT_EQ(stats.worst_view, 1);
+}
+
+// Masks held as windows (their bounding rectangles, or any rectangle holding them) give the IoUs
+// of the whole masks: a closed box (filled from its outline) and an open one (drawn face by face),
+// the windows overlapping the silhouette in part, wholly or not at all.
+TEST(Reprojection, MasksAsWindowsGiveTheIoUsOfTheWholeMasks) {
+  Mesh open = BoxMesh({-20.0f, -20.0f, 10.0f}, {20.0f, 20.0f, 50.0f});
+  const Mesh closed = open;
+  open.faces.pop_back();
+  std::vector<View> views;
+  std::vector<cv::Mat> masks;
+  for (const double angle : {0.0, 25.0, 70.0, 140.0}) {
+    views.push_back(ThesisView(200, 100, angle));
+    cv::Mat mask(100, 200, CV_8UC1, cv::Scalar(0));
+    const int shift = static_cast<int>(angle) / 2;
+    cv::rectangle(mask, cv::Rect(60 + shift, 30, 50, 40), cv::Scalar(255), cv::FILLED);
+    cv::circle(mask, cv::Point(150, 20 + shift / 4), 8, cv::Scalar(255), cv::FILLED);
+    masks.push_back(mask);
+  }
+  masks.back().setTo(0);
+  masks.back()(cv::Rect(170, 80, 20, 15)).setTo(255);  // off the silhouette
+  for (const Mesh* mesh : {&closed, static_cast<const Mesh*>(&open)}) {
+    const ReprojectionStats whole = SilhouetteReprojection(*mesh, views, masks);
+    for (const int margin : {0, 3}) {
+      std::vector<cv::Mat> windows;
+      std::vector<cv::Point> origins;
+      for (const cv::Mat& mask : masks) {
+        const cv::Rect roi = cv::boundingRect(mask);
+        const cv::Rect window = cv::Rect(roi.x - margin, roi.y - margin, roi.width + 2 * margin,
+                                         roi.height + 2 * margin) &
+                                cv::Rect(0, 0, mask.cols, mask.rows);
+        windows.push_back(mask(window).clone());
+        origins.push_back(window.tl());
+      }
+      const ReprojectionStats windowed = SilhouetteReprojection(*mesh, views, windows, origins);
+      EXPECT_EQ(windowed.iou, whole.iou) << (mesh == &open ? "open" : "closed") << " " << margin;
+    }
+  }
 }
 
 TEST(Reprojection, VolumeIoUOfTwoBoxes) {
