@@ -80,19 +80,34 @@ bool DecodeJpeg(Bytes b, jpeg_decompress_struct& cinfo, JpegContext& context) {
   return true;
 }
 
-Expected<void> VerifyJpeg(Bytes b) {
+// A libjpeg decompressor whose every complaint, warnings included, jumps back with its words
+// in `context`.
+struct JpegDecompressor {
   JpegContext context;
   jpeg_decompress_struct cinfo{};
-  cinfo.err = jpeg_std_error(&context.manager);
-  context.manager.error_exit = JpegErrorExit;
-  context.manager.emit_message = JpegEmitMessage;
-  context.manager.output_message = JpegOutputMessage;
-  jpeg_create_decompress(&cinfo);
-  const bool ok = DecodeJpeg(b, cinfo, context);
-  jpeg_destroy_decompress(&cinfo);
-  if (ok) return {};
-  return Bad(ImageFormat::kJpeg, fmt::format("libjpeg {}: \"{}\"",
-                                             context.warning ? "warns" : "fails", context.message));
+
+  JpegDecompressor() {
+    cinfo.err = jpeg_std_error(&context.manager);
+    context.manager.error_exit = JpegErrorExit;
+    context.manager.emit_message = JpegEmitMessage;
+    context.manager.output_message = JpegOutputMessage;
+    jpeg_create_decompress(&cinfo);
+  }
+  ~JpegDecompressor() { jpeg_destroy_decompress(&cinfo); }
+  JpegDecompressor(const JpegDecompressor&) = delete;
+  JpegDecompressor& operator=(const JpegDecompressor&) = delete;
+
+  std::unexpected<Error> Complaint() const {
+    return Bad(
+        ImageFormat::kJpeg,
+        fmt::format("libjpeg {}: \"{}\"", context.warning ? "warns" : "fails", context.message));
+  }
+};
+
+Expected<void> VerifyJpeg(Bytes b) {
+  JpegDecompressor jpeg;
+  if (DecodeJpeg(b, jpeg.cinfo, jpeg.context)) return {};
+  return jpeg.Complaint();
 }
 
 // The EXIF orientation (tag 0x0112 of IFD0) in a saved APP1 marker: 1 (upright) when the
@@ -408,21 +423,12 @@ std::optional<Expected<cv::Mat>> DecodeVerifiedJpeg(std::span<const std::uint8_t
       imread_flags != cv::IMREAD_GRAYSCALE) {
     return std::nullopt;
   }
-  JpegContext context;
   JpegPixels pixels;
   pixels.imread_flags = imread_flags;
-  jpeg_decompress_struct cinfo{};
-  cinfo.err = jpeg_std_error(&context.manager);
-  context.manager.error_exit = JpegErrorExit;
-  context.manager.emit_message = JpegEmitMessage;
-  context.manager.output_message = JpegOutputMessage;
-  jpeg_create_decompress(&cinfo);
-  const bool ok = DecodeJpegPixels(bytes, cinfo, context, pixels);
-  jpeg_destroy_decompress(&cinfo);
-  if (ok) return std::move(pixels.image);
+  JpegDecompressor jpeg;
+  if (DecodeJpegPixels(bytes, jpeg.cinfo, jpeg.context, pixels)) return std::move(pixels.image);
   if (pixels.other_kind) return std::nullopt;
-  return Bad(ImageFormat::kJpeg, fmt::format("libjpeg {}: \"{}\"",
-                                             context.warning ? "warns" : "fails", context.message));
+  return jpeg.Complaint();
 }
 
 Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t> bytes) {

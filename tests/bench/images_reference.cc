@@ -24,7 +24,9 @@ namespace {
 
 namespace rc = revolve::reconstruct;
 
-int Decode(const std::filesystem::path& dir) {
+// Reads every image of `dir` with `read` (an empty image or an error stops it).
+template <typename ReadFn>
+int EachImage(const std::filesystem::path& dir, const char* verb, const ReadFn& read) {
   const revolve::Expected<std::vector<std::filesystem::path>> files = revolve::ListImageFiles(dir);
   if (!files) {
     std::fprintf(stderr, "%s\n", files.error().message.c_str());
@@ -32,29 +34,27 @@ int Decode(const std::filesystem::path& dir) {
   }
   std::size_t pixels = 0;
   for (const std::filesystem::path& file : *files) {
-    pixels += cv::imread(file.string(), cv::IMREAD_UNCHANGED).total();
-  }
-  std::printf("decoded %zu images, %zu pixels\n", files->size(), pixels);
-  return 0;
-}
-
-int Read(const std::filesystem::path& dir) {
-  const revolve::Expected<std::vector<std::filesystem::path>> files = revolve::ListImageFiles(dir);
-  if (!files) {
-    std::fprintf(stderr, "%s\n", files.error().message.c_str());
-    return 1;
-  }
-  std::size_t pixels = 0;
-  for (const std::filesystem::path& file : *files) {
-    const revolve::Expected<cv::Mat> image = revolve::ReadImageFile(file);
-    if (!image) {
-      std::fprintf(stderr, "%s\n", image.error().message.c_str());
+    const revolve::Expected<cv::Mat> image = read(file);
+    if (!image || image->empty()) {
+      std::fprintf(stderr, "%s: %s\n", file.string().c_str(),
+                   image ? "cannot be read" : image.error().message.c_str());
       return 1;
     }
     pixels += image->total();
   }
-  std::printf("read %zu images, %zu pixels\n", files->size(), pixels);
+  std::printf("%s %zu images, %zu pixels\n", verb, files->size(), pixels);
   return 0;
+}
+
+int Decode(const std::filesystem::path& dir) {
+  return EachImage(dir, "decoded", [](const std::filesystem::path& file) {
+    return revolve::Expected<cv::Mat>(cv::imread(file.string(), cv::IMREAD_UNCHANGED));
+  });
+}
+
+int Read(const std::filesystem::path& dir) {
+  return EachImage(dir, "read",
+                   [](const std::filesystem::path& file) { return revolve::ReadImageFile(file); });
 }
 
 int NaiveCarve(const std::filesystem::path& dir, int resolution) {
