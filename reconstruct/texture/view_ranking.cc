@@ -17,16 +17,20 @@ template <typename Entry, typename ViewOf, typename Emit>
 PerView<Entry> SortByView(int nviews, std::size_t n, const ViewOf& view_of, const Emit& emit) {
   const std::size_t chunks = (n + kNormalsPerTask - 1) / kNormalsPerTask;
   std::vector<int> count(chunks * nviews, 0);  // chunk-major
-  ParallelFor(0, chunks, [&](std::size_t chunk) {
-    int* own = &count[chunk * nviews];
+  // fn(i, slot, view) for every candidate of the chunk's items, in order.
+  const auto each = [&](std::size_t chunk, const auto& fn) {
     for (std::size_t i = chunk * kNormalsPerTask; i < std::min(n, (chunk + 1) * kNormalsPerTask);
          ++i) {
       for (int slot = 0; slot < kCandidates; ++slot) {
         const int k = view_of(i, slot);
         if (k < 0) break;
-        ++own[k];
+        fn(i, slot, k);
       }
     }
+  };
+  ParallelFor(0, chunks, [&](std::size_t chunk) {
+    int* own = &count[chunk * nviews];
+    each(chunk, [own](std::size_t, int, int k) { ++own[k]; });
   });
   PerView<Entry> out;
   out.start.assign(nviews + 1, 0);
@@ -44,14 +48,7 @@ PerView<Entry> SortByView(int nviews, std::size_t n, const ViewOf& view_of, cons
   out.entries.resize(at);
   ParallelFor(0, chunks, [&](std::size_t chunk) {
     int* fill = &count[chunk * nviews];
-    for (std::size_t i = chunk * kNormalsPerTask; i < std::min(n, (chunk + 1) * kNormalsPerTask);
-         ++i) {
-      for (int slot = 0; slot < kCandidates; ++slot) {
-        const int k = view_of(i, slot);
-        if (k < 0) break;
-        out.entries[fill[k]++] = emit(i, slot);
-      }
-    }
+    each(chunk, [&](std::size_t i, int slot, int k) { out.entries[fill[k]++] = emit(i, slot); });
   });
   return out;
 }
