@@ -1,8 +1,5 @@
 // revolve: the command-line front end. Thin: parses arguments and calls the station library.
-#include <csignal>
 #include <iostream>
-#include <stop_token>
-#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -13,32 +10,9 @@
 #include "station/commands/scan_command.h"
 #include "station/commands/station_commands.h"
 #include "station/commands/turntable_commands.h"
+#include "station/signal_stop.h"
 
 namespace {
-
-// Turns SIGINT/SIGTERM into a stop request for the running command. The signals are blocked in
-// every thread and taken synchronously by a watcher thread, so no work happens in a handler.
-class SignalStop {
- public:
-  SignalStop() {
-    sigemptyset(&set_);
-    sigaddset(&set_, SIGINT);
-    sigaddset(&set_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
-    watcher_ = std::jthread([this](std::stop_token self) {
-      const timespec poll{0, 100'000'000};
-      while (!self.stop_requested()) {
-        if (sigtimedwait(&set_, nullptr, &poll) > 0) source_.request_stop();
-      }
-    });
-  }
-  std::stop_token token() const { return source_.get_token(); }
-
- private:
-  sigset_t set_{};
-  std::stop_source source_;
-  std::jthread watcher_;
-};
 
 int Main(int argc, char** argv) {
   CLI::App app{"revolve: turntable 3D capture station"};
@@ -74,7 +48,7 @@ int Main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : revolve::station::kExitUsage;
   }
 
-  SignalStop signals;
+  revolve::station::SignalStop signals;
   if (auto code = turntable_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (auto code = station_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
   if (auto code = camera_commands->Run(signals.token(), std::cout, std::cerr)) return *code;
