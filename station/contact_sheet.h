@@ -15,6 +15,7 @@ cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask);
 // ContactSheetTile in two steps, for a caller that drops the frame before the mask is final:
 // the frame's thumbnail, then the mask (the frame's size) outlined on a copy of it.
 // ContactSheetOutline(ContactSheetThumbnail(frame), mask) == ContactSheetTile(frame, mask).
+// A grey frame's thumbnail is grey, and in colour the thumbnail of its colour copy.
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame);
 cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask);
 

@@ -94,5 +94,27 @@ TEST(ContactSheetTest, OutlinesTheSilhouetteAndTilesEveryStop) {
   EXPECT_EQ(sheet.rows, 2 * tile.rows);
 }
 
+// A silhouette set's tiles are shrunk in grey and coloured after (set_masks.cc): the same pixels
+// as shrinking the colour copy, for masks of camera sizes (whole and fractional scales).
+TEST(ContactSheetTest, AGreyThumbnailInColourIsTheThumbnailOfTheColourCopy) {
+  cv::RNG rng(7);
+  for (const cv::Size size :
+       {cv::Size(720, 576), cv::Size(1280, 960), cv::Size(641, 479), cv::Size(2592, 1944)}) {
+    cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
+    for (int k = 0; k < 6; ++k) {
+      cv::ellipse(mask, {rng.uniform(0, size.width), rng.uniform(0, size.height)},
+                  {rng.uniform(5, size.width / 3), rng.uniform(5, size.height / 3)},
+                  rng.uniform(0.0, 180.0), 0, 360, cv::Scalar(255), cv::FILLED);
+    }
+    cv::Mat colour;
+    cv::cvtColor(mask, colour, cv::COLOR_GRAY2BGR);
+    cv::Mat grey_then_colour;
+    cv::cvtColor(ContactSheetThumbnail(mask), grey_then_colour, cv::COLOR_GRAY2BGR);
+    const cv::Mat expected = ContactSheetThumbnail(colour);
+    ASSERT_EQ(grey_then_colour.size(), expected.size()) << size;
+    EXPECT_EQ(cv::norm(grey_then_colour, expected, cv::NORM_INF), 0.0) << size;
+  }
+}
+
 }  // namespace
 }  // namespace revolve::station
