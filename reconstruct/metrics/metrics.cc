@@ -1,13 +1,15 @@
 #include "reconstruct/metrics/metrics.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <vector>
 
-#include <tbb/parallel_sort.h>
 #include <Eigen/Dense>
+
+#include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -48,13 +50,10 @@ MeshStats ComputeStats(const Mesh& mesh) {
 
   stats.bbox_min_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   stats.bbox_max_mm = -stats.bbox_min_mm;
-  // Every directed edge (a, b) as one key packing both indices; sorted below, a key's run is
-  // its uses.
-  std::vector<std::uint64_t> directed;
-  directed.reserve(mesh.faces.size() * 3);
-  auto key = [](int a, int b) {
-    return (std::uint64_t{static_cast<std::uint32_t>(a)} << 32) | static_cast<std::uint32_t>(b);
-  };
+  // Each vertex's outgoing directed edges (their targets), grouped by vertex: counted here,
+  // placed below (a counting sort).
+  const std::size_t n = mesh.vertices.size();
+  std::vector<std::size_t> first(n + 1, 0);
   double volume6 = 0.0;
   for (const Eigen::Vector3i& f : mesh.faces) {
     const Eigen::Vector3d a = Vertex(mesh, f[0]);
@@ -69,48 +68,44 @@ MeshStats ComputeStats(const Mesh& mesh) {
     if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
       ++stats.degenerate_triangles;
     }
-    for (int e = 0; e < 3; ++e) {
-      directed.push_back(key(f[e], f[(e + 1) % 3]));
-    }
+    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
   }
   stats.volume_mm3 = volume6 / 6.0;
-  stats.oriented = true;
-  stats.closed = true;
-  tbb::parallel_sort(directed.begin(), directed.end());
-  // Where each vertex's edges start in `directed` (sorted by their first vertex), so that a
-  // reverse edge is looked up among its vertex's few edges.
-  std::vector<std::size_t> first_of(mesh.vertices.size() + 1, directed.size());
-  for (std::size_t i = directed.size(); i-- > 0;) {
-    const auto a = static_cast<std::size_t>(directed[i] >> 32);
-    if (a < mesh.vertices.size()) first_of[a] = i;
+  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
+  std::vector<int> targets(first[n]);
+  {
+    std::vector<std::size_t> next(first.begin(), first.end() - 1);
+    for (const Eigen::Vector3i& f : mesh.faces) {
+      for (int e = 0; e < 3; ++e) targets[next[static_cast<std::size_t>(f[e])]++] = f[(e + 1) % 3];
+    }
   }
-  for (std::size_t v = mesh.vertices.size(); v-- > 0;) {
-    first_of[v] = std::min(first_of[v], first_of[v + 1]);
-  }
-  const auto uses_of = [&](std::uint64_t k) {
-    const auto a = static_cast<std::size_t>(k >> 32);
-    const auto begin = a < mesh.vertices.size() ? directed.begin() + first_of[a] : directed.begin();
-    const auto end = a < mesh.vertices.size() ? directed.begin() + first_of[a + 1] : directed.end();
-    const auto [first, last] = std::equal_range(begin, end, k);
-    return static_cast<int>(last - first);
+  const auto uses = [&](int from, int to) {
+    const auto begin = targets.begin() + static_cast<std::ptrdiff_t>(first[from]);
+    const auto end = targets.begin() + static_cast<std::ptrdiff_t>(first[from + 1]);
+    return static_cast<int>(std::count(begin, end, to));
   };
-  for (std::size_t i = 0; i < directed.size();) {
-    const std::uint64_t k = directed[i];
-    std::size_t j = i + 1;
-    while (j < directed.size() && directed[j] == k) ++j;
-    const int uses = static_cast<int>(j - i);
-    i = j;
-    const int a = static_cast<int>(k >> 32);
-    const int b = static_cast<int>(k & 0xffffffffu);
-    const int reverse_uses = uses_of(key(b, a));
-    if (uses != 1) {
-      stats.oriented = false;
+  // Oriented: every directed edge used once; closed: every undirected edge {a, b} used twice
+  // (its uses plus its reverse's), none from a vertex to itself. Each vertex's edges are
+  // checked on its own, on all cores; a flag only ever goes from true to false.
+  std::atomic<bool> oriented = true;
+  std::atomic<bool> closed = true;
+  ParallelChunks(0, n, 4096, [&](std::size_t lo, std::size_t hi) {
+    bool chunk_oriented = true;
+    bool chunk_closed = true;
+    for (std::size_t v = lo; v < hi; ++v) {
+      const int a = static_cast<int>(v);
+      for (std::size_t k = first[v]; k < first[v + 1]; ++k) {
+        const int b = targets[k];
+        const int forward = uses(a, b);
+        if (forward != 1) chunk_oriented = false;
+        if (a == b || forward + uses(b, a) != 2) chunk_closed = false;
+      }
     }
-    // Undirected edge {a, b} is used uses + reverse_uses times.
-    if (uses + reverse_uses != 2 || a == b) {
-      stats.closed = false;
-    }
-  }
+    if (!chunk_oriented) oriented.store(false, std::memory_order_relaxed);
+    if (!chunk_closed) closed.store(false, std::memory_order_relaxed);
+  });
+  stats.oriented = oriented.load();
+  stats.closed = closed.load();
   return stats;
 }
 

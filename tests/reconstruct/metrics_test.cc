@@ -1,6 +1,7 @@
 // Mesh statistics, distances to a truth, sphere fit.
 #include "reconstruct/metrics/metrics.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -60,6 +61,48 @@ TEST(Metrics, DetectsOpenAndMisorientedMeshes) {
   EXPECT_NEAR(stats.volume_mm3, -1.0, 1e-9);
 
   EXPECT_FALSE(ComputeStats(Mesh{}).closed);
+}
+
+// A torus of u x v quads (two triangles each), closed and outward-oriented: large enough that
+// its vertices' edges are checked in many chunks.
+Mesh Torus(int u, int v) {
+  Mesh mesh;
+  for (int i = 0; i < u; ++i) {
+    for (int j = 0; j < v; ++j) {
+      const double a = 2.0 * M_PI * i / u;
+      const double b = 2.0 * M_PI * j / v;
+      mesh.vertices.emplace_back(static_cast<float>((3.0 + std::cos(b)) * std::cos(a)),
+                                 static_cast<float>((3.0 + std::cos(b)) * std::sin(a)),
+                                 static_cast<float>(std::sin(b)));
+    }
+  }
+  const auto at = [&](int i, int j) { return (i % u) * v + (j % v); };
+  for (int i = 0; i < u; ++i) {
+    for (int j = 0; j < v; ++j) {
+      mesh.faces.emplace_back(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+      mesh.faces.emplace_back(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+  }
+  return mesh;
+}
+
+TEST(Metrics, FindsOneFlawAnywhereInALargeMesh) {
+  const Mesh torus = Torus(300, 200);  // 60000 vertices
+  MeshStats stats = ComputeStats(torus);
+  EXPECT_TRUE(stats.closed && stats.oriented);
+  EXPECT_NEAR(stats.volume_mm3, 2.0 * M_PI * M_PI * 3.0, 0.05);  // 2 pi^2 R r^2
+  for (const std::size_t face : {std::size_t{0}, torus.faces.size() / 2, torus.faces.size() - 1}) {
+    Mesh flipped = torus;
+    std::swap(flipped.faces[face][1], flipped.faces[face][2]);
+    stats = ComputeStats(flipped);
+    EXPECT_TRUE(stats.closed) << face;
+    EXPECT_FALSE(stats.oriented) << face;
+    Mesh open = torus;
+    open.faces.erase(open.faces.begin() + static_cast<std::ptrdiff_t>(face));
+    stats = ComputeStats(open);
+    EXPECT_FALSE(stats.closed) << face;
+    EXPECT_TRUE(stats.oriented) << face;
+  }
 }
 
 TEST(Metrics, DistanceToAPlane) {
