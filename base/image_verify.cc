@@ -247,13 +247,18 @@ bool DecodePngPixels(png_structp png, png_infop info, PngContext& context) {
   ReadPngInfo(png, info, context);
   const int colour = png_get_color_type(png, info);
   const int flags = context.imread_flags;
-  if (png_get_bit_depth(png, info) != 8 || png_get_valid(png, info, PNG_INFO_tRNS) != 0 ||
+  const int depth = png_get_bit_depth(png, info);
+  // 8 bits a channel, or a 1-bit grey mask (base/png_encode.h), expanded to 0 and 255 as
+  // OpenCV expands it.
+  const bool bits = depth == 1 && colour == PNG_COLOR_TYPE_GRAY;
+  if ((depth != 8 && !bits) || png_get_valid(png, info, PNG_INFO_tRNS) != 0 ||
       (colour != PNG_COLOR_TYPE_GRAY && colour != PNG_COLOR_TYPE_RGB &&
        colour != PNG_COLOR_TYPE_RGBA) ||
       (flags == cv::IMREAD_GRAYSCALE && colour != PNG_COLOR_TYPE_GRAY)) {
     context.other_kind = true;
     return false;
   }
+  if (bits) png_set_expand_gray_1_2_4_to_8(png);
   int type = CV_8UC1;
   if (colour != PNG_COLOR_TYPE_GRAY) png_set_bgr(png);
   if (flags == cv::IMREAD_COLOR) {

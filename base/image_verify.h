@@ -32,9 +32,9 @@ Expected<void> VerifyImageData(ImageFormat format, std::span<const std::uint8_t>
 
 // Decodes a PNG as VerifyImageData checks it (every libpng warning fatal) and keeps the pixels,
 // as cv::imdecode(bytes, imread_flags) would give them, in one pass; for the common kinds only:
-// 8-bit grey, RGB or RGBA, no transparency chunk, no EXIF chunk; flags IMREAD_UNCHANGED,
-// IMREAD_COLOR, or IMREAD_GRAYSCALE of a grey file. nullopt for any other file or flags: the
-// caller verifies (VerifyImageData) and decodes with OpenCV.
+// 8-bit grey, RGB or RGBA, or 1-bit grey (masks, base/png_encode.h), no transparency chunk, no
+// EXIF chunk; flags IMREAD_UNCHANGED, IMREAD_COLOR, or IMREAD_GRAYSCALE of a grey file. nullopt for
+// any other file or flags: the caller verifies (VerifyImageData) and decodes with OpenCV.
 std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t> bytes,
                                                    int imread_flags);
 

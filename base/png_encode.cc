@@ -12,6 +12,7 @@
 // several times faster (docs/performance.md, the eighth pass).
 #include <zlib.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstring>
@@ -59,32 +60,70 @@ void AppendChunk(std::string* png, const char (&type)[5], std::string_view data)
   png->append(tail, 4);
 }
 
-// One row, BGR (or grey) at `row`, as its filter byte and Paeth differences at `out`
-// (1 + bytes); `prior` is the row above as RGB (zeros above the first), `rgb` receives this one.
-void FilterRow(const std::uint8_t* row, int width, int channels, const std::uint8_t* prior,
-               std::uint8_t* rgb, std::uint8_t* out) {
-  const int bytes = width * channels;
-  if (channels == 3) {
+// How a row of the image becomes a PNG row: BGR as RGB, grey as it is, or a binary grey image
+// (only 0 and 255) packed one bit a pixel, the first pixel in the top bit (255: 1).
+enum class RowKind { kBgr, kGrey, kBits };
+
+// The PNG row of image row `row` (width pixels) at `raw`: RowBytes(kind, width) bytes.
+std::size_t RowBytes(RowKind kind, int width) {
+  const auto w = static_cast<std::size_t>(width);
+  return kind == RowKind::kBgr ? 3 * w : kind == RowKind::kGrey ? w : (w + 7) / 8;
+}
+
+void RawRow(RowKind kind, const std::uint8_t* row, int width, std::uint8_t* raw) {
+  if (kind == RowKind::kBgr) {
     for (std::ptrdiff_t x = 0; x < width; ++x) {
-      rgb[3 * x] = row[3 * x + 2];
-      rgb[3 * x + 1] = row[3 * x + 1];
-      rgb[3 * x + 2] = row[3 * x];
+      raw[3 * x] = row[3 * x + 2];
+      raw[3 * x + 1] = row[3 * x + 1];
+      raw[3 * x + 2] = row[3 * x];
     }
+  } else if (kind == RowKind::kGrey) {
+    std::memcpy(raw, row, static_cast<std::size_t>(width));
   } else {
-    std::memcpy(rgb, row, static_cast<std::size_t>(bytes));
+    const int whole = width / 8;
+    for (int b = 0; b < whole; ++b) {
+      const std::uint8_t* p = row + 8 * b;
+      raw[b] =
+          static_cast<std::uint8_t>((p[0] & 0x80) | (p[1] & 0x40) | (p[2] & 0x20) | (p[3] & 0x10) |
+                                    (p[4] & 0x08) | (p[5] & 0x04) | (p[6] & 0x02) | (p[7] & 0x01));
+    }
+    if (whole * 8 < width) {
+      std::uint8_t last = 0;
+      for (int x = whole * 8; x < width; ++x)
+        last |= static_cast<std::uint8_t>(row[x] & (0x80 >> (x % 8)));
+      raw[whole] = last;
+    }
   }
+}
+
+// One PNG row `raw` (`bytes` bytes, `bpp` bytes a pixel, at least 1) as its filter byte and
+// Paeth differences at `out` (1 + bytes); `prior` is the PNG row above (zeros above the first).
+void FilterRow(const std::uint8_t* raw, std::size_t bytes, int bpp, const std::uint8_t* prior,
+               std::uint8_t* out) {
   out[0] = kPaethFilter;
   ++out;
+  const auto first = std::min(bytes, static_cast<std::size_t>(bpp));
   // The first pixel: no left neighbour (a = c = 0), so Paeth predicts b.
-  for (int i = 0; i < channels; ++i) out[i] = static_cast<std::uint8_t>(rgb[i] - prior[i]);
-  for (int i = channels; i < bytes; ++i) {
-    const int a = rgb[i - channels], b = prior[i], c = prior[i - channels];
+  for (std::size_t i = 0; i < first; ++i) out[i] = static_cast<std::uint8_t>(raw[i] - prior[i]);
+  for (std::size_t i = first; i < bytes; ++i) {
+    const int a = raw[i - bpp], b = prior[i], c = prior[i - bpp];
     const int pa = std::abs(b - c);          // |p - a| with p = a + b - c
     const int pb = std::abs(a - c);          // |p - b|
     const int pc = std::abs(a + b - c - c);  // |p - c|
     const int predicted = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
-    out[i] = static_cast<std::uint8_t>(rgb[i] - predicted);
+    out[i] = static_cast<std::uint8_t>(raw[i] - predicted);
   }
+}
+
+// Whether every pixel of the grey `image` is 0 or 255.
+bool IsBinary(const cv::Mat& image) {
+  for (int y = 0; y < image.rows; ++y) {
+    const std::uint8_t* row = image.ptr<std::uint8_t>(y);
+    bool binary = true;
+    for (int x = 0; x < image.cols; ++x) binary &= static_cast<std::uint8_t>(row[x] + 1) <= 1;
+    if (!binary) return false;
+  }
+  return true;
 }
 
 // A band's compressed bytes and the Adler-32 of its filtered bytes.
@@ -95,23 +134,19 @@ struct Band {
   bool ok = false;
 };
 
-Band EncodeBand(const cv::Mat& image, int first_row, int rows, bool last) {
+Band EncodeBand(const cv::Mat& image, RowKind kind, int first_row, int rows, bool last) {
   Band band;
-  const int channels = image.channels();
-  const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * channels;
-  std::vector<std::uint8_t> rgb(2 * row_bytes, 0);
-  std::uint8_t* prior = rgb.data();
-  std::uint8_t* current = rgb.data() + row_bytes;
+  const std::size_t row_bytes = RowBytes(kind, image.cols);
+  const int bpp = kind == RowKind::kBgr ? 3 : 1;
+  std::vector<std::uint8_t> raw(2 * row_bytes, 0);
+  std::uint8_t* prior = raw.data();
+  std::uint8_t* current = raw.data() + row_bytes;
   std::vector<std::uint8_t> filtered(static_cast<std::size_t>(rows) * (row_bytes + 1));
-  if (first_row > 0) {
-    // The row above, as RGB: Paeth reads it.
-    std::vector<std::uint8_t> scratch(row_bytes + 1);
-    FilterRow(image.ptr<std::uint8_t>(first_row - 1), image.cols, channels, current, prior,
-              scratch.data());
-  }
+  // The row above (Paeth reads it).
+  if (first_row > 0) RawRow(kind, image.ptr<std::uint8_t>(first_row - 1), image.cols, prior);
   for (int r = 0; r < rows; ++r) {
-    FilterRow(image.ptr<std::uint8_t>(first_row + r), image.cols, channels, prior, current,
-              filtered.data() + r * (row_bytes + 1));
+    RawRow(kind, image.ptr<std::uint8_t>(first_row + r), image.cols, current);
+    FilterRow(current, row_bytes, bpp, prior, filtered.data() + r * (row_bytes + 1));
     std::swap(prior, current);
   }
   band.filtered_size = filtered.size();
@@ -138,7 +173,10 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
     return MakeError(ErrorCode::kInternal,
                      "cannot encode the image as PNG: it is not an 8-bit BGR or grey image");
   }
-  const std::size_t row_bytes = static_cast<std::size_t>(image.cols) * image.channels() + 1;
+  const RowKind kind = image.channels() == 3 ? RowKind::kBgr
+                       : IsBinary(image)     ? RowKind::kBits
+                                             : RowKind::kGrey;
+  const std::size_t row_bytes = RowBytes(kind, image.cols) + 1;
   if (row_bytes * kBandRows > std::numeric_limits<uInt>::max() / 2) {
     return MakeError(
         ErrorCode::kInternal,
@@ -148,7 +186,7 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
   std::vector<Band> encoded(static_cast<std::size_t>(bands));
   tbb::parallel_for(std::size_t{0}, encoded.size(), [&](std::size_t b) {
     const int first = static_cast<int>(b) * kBandRows;
-    encoded[b] = EncodeBand(image, first, std::min(kBandRows, image.rows - first),
+    encoded[b] = EncodeBand(image, kind, first, std::min(kBandRows, image.rows - first),
                             static_cast<int>(b) == bands - 1);
   });
   std::uint32_t adler = static_cast<std::uint32_t>(adler32_z(0, nullptr, 0));
@@ -166,9 +204,9 @@ Expected<std::string> EncodePng(const cv::Mat& image) {
   char header[13];
   PutBigEndian32(static_cast<std::uint32_t>(image.cols), header);
   PutBigEndian32(static_cast<std::uint32_t>(image.rows), header + 4);
-  header[8] = 8;                              // bits per channel
-  header[9] = image.channels() == 3 ? 2 : 0;  // truecolour or grey
-  header[10] = header[11] = header[12] = 0;   // deflate, adaptive filtering, no interlace
+  header[8] = kind == RowKind::kBits ? 1 : 8;  // bits per channel
+  header[9] = image.channels() == 3 ? 2 : 0;   // truecolour or grey
+  header[10] = header[11] = header[12] = 0;    // deflate, adaptive filtering, no interlace
   AppendChunk(&png, "IHDR", std::string_view(header, sizeof(header)));
   // zlib's header: deflate with a 32 KiB window, level "fastest" (FCHECK makes it a multiple of
   // 31).

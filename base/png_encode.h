@@ -16,8 +16,10 @@
 
 namespace revolve {
 
-// An 8-bit BGR or grey image as PNG bytes (RGB or grey). Errors: internal for another kind of
-// image (depth, channels, empty) or when zlib fails.
+// An 8-bit BGR or grey image as PNG bytes (RGB or grey). A grey image of only 0 and 255 (a
+// mask) is written one bit a pixel: every PNG reader gives back 0 and 255 (libpng expands
+// 1-bit grey to 8 bits by scaling), and it is an eighth of the bytes to filter and deflate.
+// Errors: internal for another kind of image (depth, channels, empty) or when zlib fails.
 Expected<std::string> EncodePng(const cv::Mat& image);
 
 // EncodePng, written atomically (base/atomic_file.h). Errors name the file.

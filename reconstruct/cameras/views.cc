@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -133,6 +134,33 @@ Box SurvivorsBox(const CarveResult& carve, double margin_cells) {
   return box;
 }
 
+// A mask's pixel count and the sums of its pixels' columns and rows (the zeroth and first
+// moments of its non-zero pixels, cv::moments(mask, true)'s m00, m10, m01, which are integers).
+struct MaskMoments {
+  std::int64_t m00 = 0;
+  std::int64_t m10 = 0;
+  std::int64_t m01 = 0;
+};
+
+MaskMoments Moments(const cv::Mat& mask) {
+  MaskMoments moments;
+  for (int y = 0; y < mask.rows; ++y) {
+    const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+    // Branch-free, so the row vectorises; a row's sums fit 64 bits at any width.
+    std::int64_t count = 0;
+    std::int64_t sum_x = 0;
+    for (int x = 0; x < mask.cols; ++x) {
+      const std::int64_t set = row[x] != 0;
+      count += set;
+      sum_x += set * x;
+    }
+    moments.m00 += count;
+    moments.m10 += sum_x;
+    moments.m01 += count * y;
+  }
+  return moments;
+}
+
 }  // namespace
 
 View ThesisView(int width_px, int height_px, double plate_angle_deg) {
@@ -188,14 +216,15 @@ Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> directions;
   // Each mask's moments on all cores; summed in mask order.
-  std::vector<cv::Moments> all_moments(std::min(masks.size(), views.size()));
-  ParallelFor(0, all_moments.size(),
-              [&](std::size_t i) { all_moments[i] = cv::moments(masks[i], /*binaryImage=*/true); });
+  std::vector<MaskMoments> all_moments(std::min(masks.size(), views.size()));
+  ParallelFor(0, all_moments.size(), [&](std::size_t i) { all_moments[i] = Moments(masks[i]); });
   for (std::size_t i = 0; i < all_moments.size(); ++i) {
-    const cv::Moments& moments = all_moments[i];
-    if (moments.m00 <= 0.0) continue;
-    const std::optional<Ray> ray = BackProject(
-        views[i], Eigen::Vector2d(moments.m10 / moments.m00, moments.m01 / moments.m00));
+    const MaskMoments& moments = all_moments[i];
+    if (moments.m00 <= 0) continue;
+    const auto m00 = static_cast<double>(moments.m00);
+    const std::optional<Ray> ray =
+        BackProject(views[i], Eigen::Vector2d(static_cast<double>(moments.m10) / m00,
+                                              static_cast<double>(moments.m01) / m00));
     if (!ray) continue;
     const Eigen::Matrix3d projector =
         Eigen::Matrix3d::Identity() - ray->direction * ray->direction.transpose();

@@ -18,6 +18,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_read.h"
+#include "base/png_encode.h"
 #include "tests/support/encoded_images.h"
 #include "tests/support/test_files.h"
 
@@ -241,6 +242,40 @@ TEST(DecodeVerifiedPng, MatchesOpenCvForGreyRgbAndRgbaUnderEveryFlag) {
   const std::optional<Expected<cv::Mat>> refused = DecodeVerifiedPng(cut, cv::IMREAD_GRAYSCALE);
   ASSERT_TRUE(refused);
   EXPECT_FALSE(*refused);
+}
+
+// Masks (only 0 and 255) are written one bit a pixel (base/png_encode.h): OpenCV and the one-pass
+// decoder read them back as the mask, under every flag; one grey level more keeps 8 bits.
+TEST(DecodeVerifiedPng, ReadsOneBitMasksAsWrittenAndAsOpenCvDoes) {
+  for (const cv::Size size : {cv::Size(61, 47), cv::Size(720, 576), cv::Size(1, 3)}) {
+    cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
+    cv::ellipse(mask, {size.width / 2, size.height / 2}, {size.width / 3 + 1, size.height / 4 + 1},
+                30.0, 0, 360, cv::Scalar(255), cv::FILLED);
+    mask.at<std::uint8_t>(0, size.width - 1) = 255;  // the last pixel of a partial byte
+    const Expected<std::string> png = EncodePng(mask);
+    ASSERT_TRUE(png);
+    const Bytes bytes(png->begin(), png->end());
+    EXPECT_EQ(bytes[24], 1) << "bit depth, " << size;
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_COLOR, cv::IMREAD_GRAYSCALE}) {
+      const cv::Mat expected = cv::imdecode(bytes, flags);
+      ASSERT_FALSE(expected.empty());
+      const std::optional<Expected<cv::Mat>> mine = DecodeVerifiedPng(bytes, flags);
+      ASSERT_TRUE(mine) << flags;
+      ASSERT_TRUE(*mine) << (*mine).error().message;
+      ASSERT_EQ((*mine)->type(), expected.type()) << flags;
+      EXPECT_EQ(cv::norm(**mine, expected, cv::NORM_INF), 0.0) << size << ", flags " << flags;
+      if (flags != cv::IMREAD_COLOR) {
+        EXPECT_EQ(cv::norm(**mine, mask, cv::NORM_INF), 0.0);
+      }
+    }
+    cv::Mat grey = mask.clone();
+    grey.at<std::uint8_t>(size.height - 1, 0) = 254;
+    const Expected<std::string> eight = EncodePng(grey);
+    ASSERT_TRUE(eight);
+    EXPECT_EQ(static_cast<int>((*eight)[24]), 8) << size;
+    const cv::Mat back = cv::imdecode(Bytes(eight->begin(), eight->end()), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(cv::norm(back, grey, cv::NORM_INF), 0.0);
+  }
 }
 
 // The one-pass JPEG decoder gives what OpenCV gives, pixel for pixel: colour (4:2:0 and
