@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -70,6 +71,34 @@ std::size_t RowBytes(RowKind kind, int width) {
   return kind == RowKind::kBgr ? 3 * w : kind == RowKind::kGrey ? w : (w + 7) / 8;
 }
 
+// Eight bytes as a little-endian word (the pixel at `p` in the low byte).
+std::uint64_t Word(const std::uint8_t* p) {
+  std::uint64_t w = 0;
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(&w, p, sizeof(w));
+  } else {
+    for (int k = 7; k >= 0; --k) w = (w << 8) | p[k];
+  }
+  return w;
+}
+
+// Eight pixels of a binary row as one byte, the first in the top bit: each byte's top bit
+// gathered into the word's top byte by one multiplication (pixel k's to bit 56 + k: the partial
+// products fall on distinct bits, so nothing carries), then that byte's bits reversed.
+std::uint8_t PackEight(const std::uint8_t* p) {
+  static constexpr std::array<std::uint8_t, 256> kReversed = [] {
+    std::array<std::uint8_t, 256> table{};
+    for (int v = 0; v < 256; ++v) {
+      int r = 0;
+      for (int bit = 0; bit < 8; ++bit) r |= ((v >> bit) & 1) << (7 - bit);
+      table[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(r);
+    }
+    return table;
+  }();
+  const std::uint64_t tops = Word(p) & 0x8080808080808080ULL;
+  return kReversed[(tops * 0x0002040810204081ULL) >> 56];
+}
+
 void RawRow(RowKind kind, const std::uint8_t* row, int width, std::uint8_t* raw) {
   if (kind == RowKind::kBgr) {
     for (std::ptrdiff_t x = 0; x < width; ++x) {
@@ -81,16 +110,12 @@ void RawRow(RowKind kind, const std::uint8_t* row, int width, std::uint8_t* raw)
     std::memcpy(raw, row, static_cast<std::size_t>(width));
   } else {
     const int whole = width / 8;
-    for (int b = 0; b < whole; ++b) {
-      const std::uint8_t* p = row + 8 * b;
-      raw[b] =
-          static_cast<std::uint8_t>((p[0] & 0x80) | (p[1] & 0x40) | (p[2] & 0x20) | (p[3] & 0x10) |
-                                    (p[4] & 0x08) | (p[5] & 0x04) | (p[6] & 0x02) | (p[7] & 0x01));
-    }
+    for (int b = 0; b < whole; ++b) raw[b] = PackEight(row + 8 * b);
     if (whole * 8 < width) {
       std::uint8_t last = 0;
-      for (int x = whole * 8; x < width; ++x)
+      for (int x = whole * 8; x < width; ++x) {
         last |= static_cast<std::uint8_t>(row[x] & (0x80 >> (x % 8)));
+      }
       raw[whole] = last;
     }
   }
@@ -115,13 +140,19 @@ void FilterRow(const std::uint8_t* raw, std::size_t bytes, int bpp, const std::u
   }
 }
 
-// Whether every pixel of the grey `image` is 0 or 255.
+// Whether every pixel of the grey `image` is 0 or 255, eight at a time: a byte is 0 or 255 iff
+// it equals its top bit spread over the byte.
 bool IsBinary(const cv::Mat& image) {
   for (int y = 0; y < image.rows; ++y) {
     const std::uint8_t* row = image.ptr<std::uint8_t>(y);
-    bool binary = true;
-    for (int x = 0; x < image.cols; ++x) binary &= static_cast<std::uint8_t>(row[x] + 1) <= 1;
-    if (!binary) return false;
+    std::uint64_t off = 0;
+    int x = 0;
+    for (; x + 8 <= image.cols; x += 8) {
+      const std::uint64_t w = Word(row + x);
+      off |= w ^ (((w >> 7) & 0x0101010101010101ULL) * 0xff);
+    }
+    for (; x < image.cols; ++x) off |= static_cast<std::uint8_t>(row[x] + 1) > 1 ? 1 : 0;
+    if (off != 0) return false;
   }
   return true;
 }
