@@ -59,7 +59,8 @@ const Frames& GetFrames() {
   return frames;
 }
 
-template <bool kNaive>
+// kStaged: the files written as the mesh is made (the station's way); else once it is done.
+template <bool kNaive, bool kStaged = true>
 void BM_LastViewToFiles(benchmark::State& state) {
   const bool texture = state.range(0) != 0;
   const Frames& f = GetFrames();
@@ -100,6 +101,7 @@ void BM_LastViewToFiles(benchmark::State& state) {
     surface.cull_views = !kNaive;
     // As the station does it (HullReconstructor::FinishStaged): each file written as soon as
     // what it holds is final. files_ms is what is left of the files once the mesh is done.
+    // Without kStaged the writer is told nothing before Finish: WriteModel after the mesh.
     Mesh mesh;
     auto writer = ModelWriter::Start(mesh, out, "model", {"ply", "obj", "stl", "glb", "wrl"});
     if (!writer) {
@@ -107,11 +109,11 @@ void BM_LastViewToFiles(benchmark::State& state) {
       break;
     }
     mesh = hull.ExtractSurface(surface);
-    (*writer)->Reached(MeshStage::kSurface);
+    if (kStaged) (*writer)->Reached(MeshStage::kSurface);
     lap(&since, &part_ms[1]);
     TextureOptions options;
     options.atlas = texture;
-    options.on_stage = (*writer)->Hook();
+    if (kStaged) options.on_stage = (*writer)->Hook();
     if (!TextureMesh(&mesh, f.views, f.images, options)) state.SkipWithError("texture failed");
     lap(&since, &part_ms[2]);
     if (!(*writer)->Finish()) state.SkipWithError("write failed");
@@ -141,6 +143,13 @@ BENCHMARK(BM_LastViewToFiles<false>)
     ->Name("LastViewToFiles/hierarchical")
     ->ArgName("texture")
     ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond);
+// The same finish with the files written only once the mesh is done (WriteModel's way), for
+// comparison.
+BENCHMARK(BM_LastViewToFiles<false, false>)
+    ->Name("LastViewToFiles/sequential")
+    ->ArgName("texture")
     ->Arg(1)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LastViewToFiles<true>)
