@@ -87,7 +87,14 @@ ModelWriter::ModelWriter(const Mesh& mesh, fs::path dir, std::string basename,
       png_ready_(png_promise_.get_future().share()) {}
 
 ModelWriter::~ModelWriter() {
-  if (!finished_) gate_.Abandon();
+  if (!finished_) {
+    gate_.Abandon();
+    // Those without a thread return at their first wait; the PNG's keeps its promise, which
+    // the glTF's thread may be waiting for.
+    for (const std::unique_ptr<Job>& job : jobs_) {
+      if (!job->thread.joinable()) job->output = job->run();
+    }
+  }
   for (const std::unique_ptr<Job>& job : jobs_) {
     if (job->thread.joinable()) job->thread.join();
   }
