@@ -76,6 +76,23 @@ class ModelWriterTest : public ::testing::Test {
   fs::path dir_;
 };
 
+// Copies `finished` into `*mesh` field by field, as TextureMesh makes it, telling `writer` of each
+// stage up to `last` (the texture itself, at kDone, is Finish's to tell).
+void MakeInStages(const Mesh& finished, MeshStage last, Mesh* mesh, ModelWriter* writer) {
+  mesh->vertices = finished.vertices;
+  mesh->faces = finished.faces;
+  writer->Reached(MeshStage::kSurface);
+  if (last == MeshStage::kSurface) return;
+  mesh->colors = finished.colors;
+  writer->Reached(MeshStage::kColors);
+  if (last == MeshStage::kColors) return;
+  mesh->uvs = finished.uvs;
+  mesh->uv_faces = finished.uv_faces;
+  writer->Reached(MeshStage::kUvs);
+  if (last == MeshStage::kUvs) return;
+  mesh->texture = finished.texture;
+}
+
 // Files larger than `bytes` fail to be written (EFBIG, "File too large") while it lives.
 class FileSizeLimit {
  public:
@@ -105,16 +122,7 @@ TEST_F(ModelWriterTest, WritesWhatWriteModelWritesStageByStage) {
   Expected<std::unique_ptr<ModelWriter>> writer =
       ModelWriter::Start(mesh, dir_ / "staged", "model", kFormats);
   ASSERT_TRUE(writer);
-  // Made field by field, as TextureMesh makes it.
-  mesh.vertices = finished.vertices;
-  mesh.faces = finished.faces;
-  (*writer)->Reached(MeshStage::kSurface);
-  mesh.colors = finished.colors;
-  (*writer)->Reached(MeshStage::kColors);
-  mesh.uvs = finished.uvs;
-  mesh.uv_faces = finished.uv_faces;
-  (*writer)->Reached(MeshStage::kUvs);
-  mesh.texture = finished.texture;
+  MakeInStages(finished, MeshStage::kDone, &mesh, writer->get());
   const Expected<std::vector<fs::path>> staged = (*writer)->Finish();
   ASSERT_TRUE(staged) << staged.error().ToString();
   fs::create_directories(dir_ / "whole");
@@ -169,11 +177,7 @@ TEST_F(ModelWriterTest, AnAbandonedMeshLeavesNoFile) {
     Expected<std::unique_ptr<ModelWriter>> writer =
         ModelWriter::Start(mesh, dir_, "model", kFormats);
     ASSERT_TRUE(writer);
-    mesh.vertices = finished.vertices;
-    mesh.faces = finished.faces;
-    (*writer)->Reached(MeshStage::kSurface);
-    mesh.colors = finished.colors;
-    (*writer)->Reached(MeshStage::kColors);
+    MakeInStages(finished, MeshStage::kColors, &mesh, writer->get());
     // The mesh fails here (say the atlas): the writer is destroyed without Finish.
   }
   EXPECT_TRUE(Contents().empty());
