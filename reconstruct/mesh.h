@@ -66,7 +66,7 @@ struct Mesh {
 };
 
 // How much of a mesh being made is final. Each stage includes those before it:
-//   kSurface  vertices and faces;
+//   kSurface  vertices, faces and view_texture;
 //   kColors   normals and colors too (each empty or one per vertex);
 //   kUvs      uvs and uv_faces too, and a non-empty texture follows at kDone (reached only on the
 //             way to a textured mesh);
