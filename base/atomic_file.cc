@@ -78,6 +78,14 @@ void AtomicFile::Append(std::string_view bytes) {
 }
 
 Expected<void> AtomicFile::Commit() {
+  if (Expected<void> synced = Sync(); !synced) return synced;
+  if (Expected<void> published = Publish(); !published) return published;
+  // Make the rename itself durable (best effort, as before: the file is in place either way).
+  (void)SyncDirectory(DirectoryOf(path_));
+  return {};
+}
+
+Expected<void> AtomicFile::Sync() {
   Flush();
   if (end_ > 0) {  // a direct file's last partial block: through the page cache
     StopDirect();
@@ -92,14 +100,25 @@ Expected<void> AtomicFile::Commit() {
   if (const int err = fd_.Close(); err != 0) {
     return std::unexpected(IoError(path_, "cannot close", err));
   }
+  buffer_.reset();
+  return {};
+}
+
+Expected<void> AtomicFile::Publish() {
   if (::rename(temp_.c_str(), path_.c_str()) != 0) {
     return std::unexpected(IoError(path_, "cannot rename the finished file into place", errno));
   }
   temp_.clear();
-  // Make the rename itself durable.
-  UniqueFd dir_fd(::open(DirectoryOf(path_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-  if (dir_fd.get() >= 0) {
-    ::fsync(dir_fd.get());
+  return {};
+}
+
+Expected<void> SyncDirectory(const std::filesystem::path& dir) {
+  UniqueFd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  if (dir_fd.get() < 0) {
+    return std::unexpected(IoError(dir, "cannot open the folder to sync it", errno));
+  }
+  if (::fsync(dir_fd.get()) != 0) {
+    return std::unexpected(IoError(dir, "cannot sync the folder", errno));
   }
   return {};
 }

@@ -64,7 +64,16 @@ class AtomicFile {
   void AppendRaw(const T& value) {
     Append(std::string_view(reinterpret_cast<const char*>(&value), sizeof(T)));
   }
+  // Commit = Sync, Publish, then SyncDirectory of the path's folder.
   Expected<void> Commit();
+  // The two halves of Commit, for files put in place together (one directory sync for all):
+  // Sync writes what is buffered, fsyncs and closes the temporary file (the calls above may not
+  // follow); Publish, after a successful Sync, renames it over `path` (the rename is durable once
+  // the folder is synced). Errors name `path`; after an error the temporary file is still removed
+  // by the destructor.
+  Expected<void> Sync();
+  Expected<void> Publish();
+  const std::filesystem::path& path() const { return path_; }
 
  private:
   // The buffer: a multiple of kBlock, aligned to it.
@@ -93,6 +102,9 @@ class AtomicFile {
   bool direct_ = false;
   int write_errno_ = 0;
 };
+
+// fsyncs the folder `dir`, making the renames into it durable. Errors: io naming `dir`.
+Expected<void> SyncDirectory(const std::filesystem::path& dir);
 
 // Writes `bytes` to `path` atomically. Errors (kIo) name the path and the reason
 // (e.g. "No space left on device"); on error no temporary file is left behind and an existing

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -63,5 +64,20 @@ struct Mesh {
            view_texture.uv_faces.size() == faces.size();
   }
 };
+
+// How much of a mesh being made is final. Each stage includes those before it:
+//   kSurface  vertices, faces and view_texture;
+//   kColors   normals and colors too (each empty or one per vertex);
+//   kUvs      uvs and uv_faces too, and a non-empty texture follows at kDone (reached only on the
+//             way to a textured mesh);
+//   kDone     everything.
+// A field is final when no one writes it again; whoever is told of a stage may read that stage's
+// fields from any thread while the maker goes on writing the others.
+enum class MeshStage { kSurface, kColors, kUvs, kDone };
+
+// Told of each stage a mesh reaches, in order, each at most once (stages may be skipped), on the
+// thread that makes the mesh; it must return quickly (start work, not do it). The mesh stays at
+// its address meanwhile. An empty hook is never called.
+using MeshStageHook = std::function<void(MeshStage)>;
 
 }  // namespace revolve::reconstruct

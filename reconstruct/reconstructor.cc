@@ -68,6 +68,14 @@ class HullReconstructor final : public Reconstructor {
   }
 
   Expected<Mesh> Finish() override {
+    Mesh mesh;
+    if (Expected<void> finished = FinishStaged(&mesh, {}); !finished) {
+      return std::unexpected(finished.error());
+    }
+    return mesh;
+  }
+
+  Expected<void> FinishStaged(Mesh* out, const MeshStageHook& on_stage) override {
     const auto start = std::chrono::steady_clock::now();
     if (hull_.OccupiedCount() == 0) {
       return MakeError(ErrorCode::kBadInput,
@@ -79,7 +87,8 @@ class HullReconstructor final : public Reconstructor {
     if (options_.flat_bottom) {
       surface.clip_below_z_mm = 0.0;
     }
-    Mesh mesh = hull_.ExtractSurface(surface);
+    Mesh& mesh = *out;
+    mesh = hull_.ExtractSurface(surface);
     const VoxelGrid& grid = hull_.grid();
     Logger("reconstruct")
         ->info(
@@ -92,12 +101,14 @@ class HullReconstructor final : public Reconstructor {
     if (mesh.faces.empty()) {
       return MakeError(ErrorCode::kInternal, "the visual hull is not empty but has no surface");
     }
+    if (on_stage) on_stage(MeshStage::kSurface);
     if (options_.finish_once) hull_.ReleaseViews();
     if (std::any_of(images_.begin(), images_.end(), [](const cv::Mat& m) { return !m.empty(); })) {
       const auto texture_start = std::chrono::steady_clock::now();
       TextureOptions texture;
       texture.atlas = options_.texture;
       texture.texture_size_px = options_.texture_size_px;
+      texture.on_stage = on_stage;
       Expected<TextureStats> textured = TextureMesh(&mesh, views_, images_, texture, origins_);
       if (!textured) {
         return std::unexpected(textured.error());
@@ -112,7 +123,8 @@ class HullReconstructor final : public Reconstructor {
                                                         texture_start)
                   .count());
     }
-    return mesh;
+    if (on_stage) on_stage(MeshStage::kDone);
+    return {};
   }
 
  private:
@@ -150,6 +162,14 @@ class HullReconstructor final : public Reconstructor {
 };
 
 }  // namespace
+
+Expected<void> Reconstructor::FinishStaged(Mesh* mesh, const MeshStageHook& on_stage) {
+  Expected<Mesh> finished = Finish();
+  if (!finished) return std::unexpected(finished.error());
+  *mesh = std::move(*finished);
+  if (on_stage) on_stage(MeshStage::kDone);
+  return {};
+}
 
 cv::Rect Reconstructor::FrameWindow(const cv::Mat& /*mask*/, const View& view) const {
   return cv::Rect(0, 0, view.width_px, view.height_px);

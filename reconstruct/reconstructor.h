@@ -93,6 +93,13 @@ class Reconstructor {
   // outward-oriented triangle mesh. Errors: bad_input when nothing remains (empty silhouettes or
   // a volume that misses the object).
   virtual Expected<Mesh> Finish() = 0;
+
+  // Finish into `*mesh` (which stays at its address), telling `on_stage` of each MeshStage as
+  // the mesh reaches it (reconstruct/mesh.h; kDone last, on success), so that a ModelWriter
+  // (reconstruct/io/model_writer.h) writes each file as soon as what it holds is final. On an
+  // error the stages told stand, but the mesh is not finished. The hull: kSurface once the
+  // surface is placed, kColors and kUvs as TextureMesh sets them. Default: Finish, then kDone.
+  virtual Expected<void> FinishStaged(Mesh* mesh, const MeshStageHook& on_stage);
 };
 
 // The reconstructor for `options.method` ("hull": incremental visual hull, surface by marching

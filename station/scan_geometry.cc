@@ -161,9 +161,9 @@ void ScanGeometry::FitSilhouetteAxis() {
   silhouette_axis_ = cal::AxisFromSilhouettes(masks_, angles_);
 }
 
-Expected<rc::Mesh> ScanGeometry::Finish() {
+Expected<void> ScanGeometry::Finish(rc::Mesh* mesh, const rc::MeshStageHook& on_stage) {
   FitSilhouetteAxis();
-  if (source_ != GeometrySource::kThesis) return reconstructor_->Finish();
+  if (source_ != GeometrySource::kThesis) return reconstructor_->FinishStaged(mesh, on_stage);
 
   if (masks_.empty()) return MakeError(ErrorCode::kBadInput, "no stop to reconstruct");
   const int width_px = masks_.front().cols;
@@ -200,7 +200,7 @@ Expected<rc::Mesh> ScanGeometry::Finish() {
     }
     frames_[i].release();
   }
-  return reconstructor_->Finish();
+  return reconstructor_->FinishStaged(mesh, on_stage);
 }
 
 nlohmann::json ScanGeometry::ReportJson() const {

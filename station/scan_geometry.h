@@ -83,9 +83,10 @@ class ScanGeometry {
   const Eigen::Vector3d& bbox_min_mm() const { return options_.bbox_min_mm; }
   const Eigen::Vector3d& bbox_max_mm() const { return options_.bbox_max_mm; }
 
-  // The mesh of every stop integrated. Errors: as Reconstructor::Finish; thesis mode: no
-  // silhouette, or no carving volume found.
-  Expected<reconstruct::Mesh> Finish();
+  // The mesh of every stop integrated, made in `*mesh` with `on_stage` told of its stages as
+  // Reconstructor::FinishStaged does (for a reconstruct::ModelWriter). Errors: as
+  // Reconstructor::Finish; thesis mode: no silhouette, or no carving volume found.
+  Expected<void> Finish(reconstruct::Mesh* mesh, const reconstruct::MeshStageHook& on_stage);
 
   // What report.json says about the geometry (call after Finish): "units" ("mm" | "px"),
   // "scale", "camera_model", "calibration" {file, created, ...} with a calibration,

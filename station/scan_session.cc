@@ -14,7 +14,7 @@
 #include "base/image_read.h"
 #include "capture/quality.h"
 #include "capture/segment/set_segmentation.h"
-#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/model_writer.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/contact_sheet.h"
 #include "station/report_json.h"
@@ -616,15 +616,21 @@ Expected<ScanResult> ScanSession::FinishScan(std::stop_token stop, Stops& run) {
   const ScanGeometry& geometry = *run.geometry;
   if (auto e = Enter(ScanState::kMeshing); !e) return std::unexpected(e.error());
   auto t = Clock::now();
-  auto mesh = run.geometry->Finish();
-  if (!mesh) return std::unexpected(WithContext(mesh.error(), "meshing"));
+  // The files are written while the mesh is made, each as soon as what it holds is final
+  // (mesh_ms is the mesh; write_ms what is left of the files after it).
+  reconstruct::Mesh mesh;  // before the writer, which borrows it
+  auto writer = reconstruct::ModelWriter::Start(mesh, folder_.model_dir(), "model",
+                                                config_.reconstruct.formats);
+  if (!writer) return std::unexpected(writer.error());
+  if (auto made = run.geometry->Finish(&mesh, (*writer)->Hook()); !made) {
+    return std::unexpected(WithContext(made.error(), "meshing"));
+  }
   times_.mesh_ms = MsSince(t);
   if (stop.stop_requested()) return std::unexpected(AbortedError(result.stops_done));
 
   if (auto e = Enter(ScanState::kWriting); !e) return std::unexpected(e.error());
   t = Clock::now();
-  auto files =
-      reconstruct::WriteModel(*mesh, folder_.model_dir(), "model", config_.reconstruct.formats);
+  auto files = (*writer)->Finish();
   if (!files) return std::unexpected(files.error());
   result.model_files.reserve(files->size());
   for (const auto& f : *files) {
@@ -639,7 +645,7 @@ Expected<ScanResult> ScanSession::FinishScan(std::stop_token stop, Stops& run) {
   times_.write_ms = MsSince(t);
   times_.total_ms = MsSince(run.scan_start);
 
-  const reconstruct::MeshStats stats = reconstruct::ComputeStats(*mesh);
+  const reconstruct::MeshStats stats = reconstruct::ComputeStats(mesh);
   result.vertices = static_cast<std::size_t>(stats.vertex_count);
   result.triangles = static_cast<std::size_t>(stats.triangle_count);
   result.times = times_;
@@ -665,7 +671,7 @@ Expected<ScanResult> ScanSession::FinishScan(std::stop_token stop, Stops& run) {
   report["times_ms"] = times_.ToJson();
   // The truth is in millimetres: not comparable with a thesis-mode model in pixels.
   if (auto truth = devices_.camera->KnownScene(); truth && geometry.metric()) {
-    report["accuracy"] = AccuracyJson(*mesh, stats, *truth);
+    report["accuracy"] = AccuracyJson(mesh, stats, *truth);
   }
   if (auto w = folder_.WriteJson("report.json", report); !w) return std::unexpected(w.error());
   manifest_["model"] = result.model_files;

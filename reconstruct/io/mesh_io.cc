@@ -8,18 +8,14 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <future>
 #include <map>
 #include <optional>
 #include <sstream>
-#include <system_error>
-#include <thread>
 
 #include <fmt/format.h>
 
-#include "base/png_encode.h"
+#include "reconstruct/io/model_writer.h"
 #include "reconstruct/io/writer_support.h"
-#include "reconstruct/meridian/meridian_vrml.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -263,11 +259,8 @@ std::uint8_t ToByte(double channel01) {
 
 }  // namespace
 
-Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
+Expected<void> internal::PutPly(const Mesh& mesh, const StageGate& gate, AtomicFile* file) {
+  if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(file->path()));
   const bool colors = mesh.HasColors();
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment revolve: object frame, mm\n";
   header += fmt::format("element vertex {}\n", mesh.vertices.size());
@@ -277,34 +270,30 @@ Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
   }
   header += fmt::format("element face {}\n", mesh.faces.size());
   header += "property list uchar int vertex_indices\nend_header\n";
-  file.Append(header);
+  file->Append(header);
   if (colors) {
-    file.PutEach(mesh.vertices.size(), 15, [&mesh](char* p, std::size_t i) {
+    file->PutEach(mesh.vertices.size(), 15, [&mesh](char* p, std::size_t i) {
       std::memcpy(p, mesh.vertices[i].data(), 12);
       std::memcpy(p + 12, mesh.colors[i].data(), 3);
       return p + 15;
     });
   } else {
-    file.PutEach(mesh.vertices.size(), 12, [&mesh](char* p, std::size_t i) {
+    file->PutEach(mesh.vertices.size(), 12, [&mesh](char* p, std::size_t i) {
       std::memcpy(p, mesh.vertices[i].data(), 12);
       return p + 12;
     });
   }
   static_assert(sizeof(Eigen::Vector3i) == 12, "three packed int32 indices");
-  file.PutEach(mesh.faces.size(), 13, [&mesh](char* p, std::size_t i) {
+  file->PutEach(mesh.faces.size(), 13, [&mesh](char* p, std::size_t i) {
     *p = 3;
     std::memcpy(p + 1, mesh.faces[i].data(), 12);
     return p + 13;
   });
-  return file.Commit();
+  return {};
 }
 
-Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
-  const bool colors = mesh.HasColors();
+Expected<void> internal::PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file) {
+  if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(file->path()));
   std::string text =
       "#VRML V2.0 utf8\n"
       "# revolve model. Points are object-frame millimetres (z up); the Transform shows them\n"
@@ -325,10 +314,10 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
       "    ccw TRUE\n"
       "    coord Coordinate {\n"
       "      point [\n";
-  // One point, colour or triangle per line, not indented: the lists are most of the file.
-  file.Append(text);
+  // One point, colour or triangle per line, not indented: the lists are most of the file->
+  file->Append(text);
   constexpr std::size_t kMaxLine = 4 * internal::kMaxNumberChars;
-  file.PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
+  file->PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
     for (int k = 0; k < 3; ++k) {
       p = internal::WriteFixed(p, mesh.vertices[i][k], 4);
       *p++ = ' ';
@@ -337,13 +326,14 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
     *p = '\n';
     return p + 1;
   });
-  file.Append("      ]\n    }\n");
-  if (colors) {
-    file.Append("    colorPerVertex TRUE\n    color Color {\n      color [\n");
+  file->Append("      ]\n    }\n");
+  if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(file->path()));
+  if (mesh.HasColors()) {
+    file->Append("    colorPerVertex TRUE\n    color Color {\n      color [\n");
     // The channels' texts once per byte value: "c" for the first, " c" for the others.
     const std::array<std::uint64_t, 256> first = internal::ChannelTexts("");
     const std::array<std::uint64_t, 256> other = internal::ChannelTexts(" ");
-    file.PutEach(mesh.colors.size(), kMaxLine, [&](char* p, std::size_t i) {
+    file->PutEach(mesh.colors.size(), kMaxLine, [&](char* p, std::size_t i) {
       const Color& c = mesh.colors[i];
       p = internal::WriteWordText(p, first[c[0]]);
       p = internal::WriteWordText(p, other[c[1]]);
@@ -351,11 +341,11 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
       std::copy_n(",\n", 2, p);
       return p + 2;
     });
-    file.Append("      ]\n    }\n");
+    file->Append("      ]\n    }\n");
   }
-  file.Append("    coordIndex [\n");
+  file->Append("    coordIndex [\n");
   const internal::IndexTexts index(0, mesh.vertices.size());
-  file.PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
+  file->PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
     for (int k = 0; k < 3; ++k) {
       p = index.Write(p, mesh.faces[i][k]);
       *p++ = ' ';
@@ -363,8 +353,31 @@ Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
     std::copy_n("-1,\n", 4, p);
     return p + 4;
   });
-  file.Append("    ]\n  }\n}\n  ]\n}\n");
+  file->Append("    ]\n  }\n}\n  ]\n}\n");
+  return {};
+}
+
+namespace {
+
+// Opens `path`'s temporary file, fills it with `put` from a finished mesh and commits it.
+Expected<void> WriteFinished(const Mesh& mesh, const fs::path& path,
+                             Expected<void> (*put)(const Mesh&, const internal::StageGate&,
+                                                   AtomicFile*)) {
+  static const internal::StageGate finished(MeshStage::kDone);
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) return opened;
+  if (Expected<void> filled = put(mesh, finished, &file); !filled) return filled;
   return file.Commit();
+}
+
+}  // namespace
+
+Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
+  return WriteFinished(mesh, path, internal::PutPly);
+}
+
+Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
+  return WriteFinished(mesh, path, internal::PutVrml);
 }
 
 bool IsModelFormat(std::string_view format) {
@@ -372,122 +385,12 @@ bool IsModelFormat(std::string_view format) {
          std::end(kModelFormats);
 }
 
-namespace {
-
-// One format's file(s) at `path` (a .glb of a textured mesh takes the texture's PNG from `png`;
-// an .obj's PNG is written by the caller): the files written, in the order WriteModel lists them.
-Expected<std::vector<fs::path>> WriteModelFile(const Mesh& mesh, const fs::path& path,
-                                               const std::string& format,
-                                               const internal::PngSource& png) {
-  Expected<void> result;
-  if (format == "ply") {
-    result = WritePly(mesh, path);
-  } else if (format == "wrl" && mesh.HasViewTexture()) {
-    // The view-dependent texture's images (<basename>_texNN.jpg), then the .wrl.
-    return WriteTexturedVrml(mesh, path, 0.001);
-  } else if (format == "wrl") {
-    result = WriteVrml(mesh, path);
-  } else if (format == "stl") {
-    result = WriteStl(mesh, path);
-  } else if (format == "glb") {
-    result = internal::WriteGlb(mesh, path, png);
-  } else {
-    result = internal::WriteObj(mesh, path, nullptr);
-  }
-  if (!result) return std::unexpected(result.error());
-  std::vector<fs::path> written = {path};
-  if (format == "obj") {
-    written.push_back(fs::path(path).replace_extension(".mtl"));
-    if (mesh.HasTexture()) written.push_back(fs::path(path).replace_extension(".png"));
-  }
-  return written;
-}
-
-}  // namespace
-
 Expected<std::vector<fs::path>> WriteModel(const Mesh& mesh, const fs::path& dir,
                                            std::string_view basename,
                                            const std::vector<std::string>& formats) {
-  for (const std::string& format : formats) {
-    if (!IsModelFormat(format)) {
-      return MakeError(
-          ErrorCode::kBadInput,
-          fmt::format("unknown model format \"{}\" (expected ply, obj, stl, glb or wrl)", format));
-    }
-  }
-  // Each file once, in the order asked for.
-  std::vector<std::string> unique;
-  for (const std::string& format : formats) {
-    if (std::find(unique.begin(), unique.end(), format) == unique.end()) unique.push_back(format);
-  }
-  // The texture is encoded once for every format that embeds or references it.
-  const bool needs_png = mesh.HasTexture() &&
-                         std::any_of(unique.begin(), unique.end(),
-                                     [](const std::string& f) { return f == "obj" || f == "glb"; });
-  // Every file at once. A writer spends much of its time waiting for the disk (direct I/O, the
-  // fsyncs of AtomicFile), so each file gets a thread of its own rather than one of the pool's,
-  // which would leave a core idle while it waits. The PNG is encoded on the pool meanwhile (in
-  // bands, on all cores), then written here; the .glb lays out the rest of its file first and
-  // waits for it (the .obj and .mtl only name it). Each file's list (and its error) is kept in
-  // its slot, so the result is in the order asked.
-  std::vector<Expected<std::vector<fs::path>>> files(unique.size());
-  const auto write = [&](std::size_t i, const internal::PngSource& png_source) {
-    files[i] = WriteModelFile(mesh, dir / fmt::format("{}.{}", basename, unique[i]), unique[i],
-                              png_source);
-  };
-  std::string png;
-  Expected<void> png_written;
-  std::shared_future<const std::string*> png_ready;
-  // Null when the encoding ended without a PNG (an exception destroys the promise before the
-  // writers are joined).
-  const internal::PngSource png_source = [&png_ready]() -> const std::string* {
-    try {
-      return png_ready.get();
-    } catch (const std::future_error&) {
-      return nullptr;
-    }
-  };
-  {
-    std::vector<std::jthread> writers;  // joined when the block ends, after the promise is gone
-    std::promise<const std::string*> png_promise;
-    png_ready = png_promise.get_future().share();
-    std::vector<std::size_t> after_png;  // those without a thread that wait for the PNG
-    for (std::size_t i = 0; i < unique.size(); ++i) {
-      try {
-        writers.emplace_back([&write, &png_source, i] { write(i, png_source); });
-      } catch (const std::system_error&) {
-        // No thread to be had: on this one.
-        if (needs_png && unique[i] == "glb") {
-          after_png.push_back(i);
-        } else {
-          write(i, png_source);
-        }
-      }
-    }
-    if (needs_png) {
-      Expected<std::string> encoded = EncodePng(mesh.texture);
-      if (encoded) {
-        png = std::move(*encoded);
-        png_promise.set_value(&png);
-        if (std::find(unique.begin(), unique.end(), "obj") != unique.end()) {
-          png_written = WriteFileAtomically(dir / fmt::format("{}.png", basename), png);
-        }
-      } else {
-        png_written = std::unexpected(encoded.error());
-        png_promise.set_value(nullptr);
-      }
-    } else {
-      png_promise.set_value(nullptr);
-    }
-    for (std::size_t i : after_png) write(i, png_source);
-  }
-  if (!png_written) return std::unexpected(png_written.error());
-  std::vector<fs::path> written;
-  for (Expected<std::vector<fs::path>>& file : files) {
-    if (!file) return std::unexpected(file.error());
-    written.insert(written.end(), file->begin(), file->end());
-  }
-  return written;
+  Expected<std::unique_ptr<ModelWriter>> writer = ModelWriter::Start(mesh, dir, basename, formats);
+  if (!writer) return std::unexpected(writer.error());
+  return (*writer)->Finish();
 }
 
 Expected<Mesh> ReadPly(const fs::path& path) {

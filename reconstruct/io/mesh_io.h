@@ -72,9 +72,10 @@ inline constexpr std::string_view kModelFormats[] = {"ply", "obj", "stl", "glb",
 // "obj" also writes .mtl and, with a texture, .png; "wrl" of a mesh with a view-dependent texture
 // is WriteTexturedVrml's (reconstruct/meridian/meridian_vrml.h: <basename>_texNN.jpg beside it,
 // millimetres scaled to metres), else WriteVrml's); returns the paths written, in order. `dir`
-// must exist. The texture is PNG-encoded once for OBJ and glTF. Errors: bad_input for an unknown
-// format (nothing written), io naming the file otherwise (files written before the failing one
-// stay).
+// must exist. The texture is PNG-encoded once for OBJ and glTF. The files are put in place
+// together once all are written (ModelWriter, reconstruct/io/model_writer.h, which also writes
+// them while the mesh is still being made). Errors: bad_input for an unknown format (nothing
+// written), io naming the file otherwise (no file of this model put in place).
 Expected<std::vector<std::filesystem::path>> WriteModel(const Mesh& mesh,
                                                         const std::filesystem::path& dir,
                                                         std::string_view basename,

@@ -80,41 +80,22 @@ std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
   return normals;
 }
 
-Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::string* png) {
-  const bool textured = mesh.HasTexture();
-  const bool colors = mesh.HasColors();
-  fs::path mtl_path = path;
-  mtl_path.replace_extension(".mtl");
-  fs::path png_path = path;
-  png_path.replace_extension(".png");
-
-  if (textured && png != nullptr) {
-    if (Expected<void> written = WriteFileAtomically(png_path, *png); !written) {
-      return written;
-    }
-  }
-  std::string mtl = fmt::format("# revolve material\nnewmtl {}\nKa 0 0 0\nKs 0 0 0\nd 1\nillum 1\n",
-                                kMaterialName);
-  mtl += textured ? fmt::format("Kd 1 1 1\nmap_Kd {}\n", png_path.filename().string())
-                  : std::string("Kd 0.8 0.8 0.8\n");
-  if (Expected<void> written = WriteFileAtomically(mtl_path, mtl); !written) {
-    return written;
-  }
-
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl) {
+  const fs::path& path = obj->path();
+  if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(path));
+  const fs::path png_path = fs::path(path).replace_extension(".png");
   std::string text = fmt::format(
       "# revolve model: object frame, millimetres, z up; {} vertices, {} triangles\n"
       "mtllib {}\n",
-      mesh.vertices.size(), mesh.faces.size(), mtl_path.filename().string());
-  file.Append(text);
+      mesh.vertices.size(), mesh.faces.size(), mtl->path().filename().string());
+  obj->Append(text);
   // Colour channels and vertex indices as text, once per value.
   const std::array<std::uint64_t, 256> channel = ChannelTexts(" ");
   const IndexTexts index(1, mesh.vertices.size());
   constexpr std::size_t kMaxLine = 8 * kMaxNumberChars;
-  file.PutEach(mesh.vertices.size(), kMaxLine, [&](char* p, std::size_t i) {
+  if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(path));
+  const bool colors = mesh.HasColors();
+  obj->PutEach(mesh.vertices.size(), kMaxLine, [&](char* p, std::size_t i) {
     *p++ = 'v';
     for (int k = 0; k < 3; ++k) {
       *p++ = ' ';
@@ -128,8 +109,12 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
     *p = '\n';
     return p + 1;
   });
+  // The uvs, or the news that there are none.
+  const std::optional<MeshStage> reached = gate.Wait(MeshStage::kUvs);
+  if (!reached) return std::unexpected(AbandonedFile(path));
+  const bool textured = TexturedAt(mesh, *reached);
   if (textured) {
-    file.PutEach(mesh.uvs.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
+    obj->PutEach(mesh.uvs.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
       std::copy_n("vt ", 3, p);
       p = WriteFixed(p + 3, mesh.uvs[i].x(), 6);
       *p++ = ' ';
@@ -138,10 +123,10 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
       return p + 1;
     });
   }
-  file.Append(fmt::format("usemtl {}\n", kMaterialName));
+  obj->Append(fmt::format("usemtl {}\n", kMaterialName));
   if (textured) {
     const IndexTexts uv_index(1, mesh.uvs.size());
-    file.PutEach(mesh.faces.size(), kMaxLine, [&](char* p, std::size_t i) {
+    obj->PutEach(mesh.faces.size(), kMaxLine, [&](char* p, std::size_t i) {
       *p++ = 'f';
       for (int c = 0; c < 3; ++c) {
         *p++ = ' ';
@@ -153,7 +138,7 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
       return p + 1;
     });
   } else {
-    file.PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
+    obj->PutEach(mesh.faces.size(), kMaxLine, [&mesh, &index](char* p, std::size_t i) {
       *p++ = 'f';
       for (int c = 0; c < 3; ++c) {
         *p++ = ' ';
@@ -163,7 +148,12 @@ Expected<void> WriteObj(const Mesh& mesh, const fs::path& path, const std::strin
       return p + 1;
     });
   }
-  return file.Commit();
+  std::string material = fmt::format(
+      "# revolve material\nnewmtl {}\nKa 0 0 0\nKs 0 0 0\nd 1\nillum 1\n", kMaterialName);
+  material += textured ? fmt::format("Kd 1 1 1\nmap_Kd {}\n", png_path.filename().string())
+                       : std::string("Kd 0.8 0.8 0.8\n");
+  mtl->Append(material);
+  return {};
 }
 
 namespace {
@@ -334,8 +324,13 @@ std::string GlbHead(const std::string& json, std::size_t bin_size) {
 
 }  // namespace
 
-Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const PngSource& png_source) {
-  const bool textured = mesh.HasTexture();
+Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& png_source,
+                      AtomicFile* file) {
+  const fs::path& path = file->path();
+  // The uvs (or the news that there are none), and with them the normals and colours.
+  const std::optional<MeshStage> reached = gate.Wait(MeshStage::kUvs);
+  if (!reached) return std::unexpected(AbandonedFile(path));
+  const bool textured = TexturedAt(mesh, *reached);
   const bool colors = !textured && mesh.HasColors();
   // The mesh's own normals (TextureMesh's) where it has them: the same values.
   std::vector<Eigen::Vector3f> computed_normals;
@@ -374,50 +369,73 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path, const PngSource&
   const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
   const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, textured, colors);
 
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
   const bool has_bin = layout.bin_size > 0;
-  file.Append(GlbHead(json, layout.bin_size));
+  file->Append(GlbHead(json, layout.bin_size));
   if (has_bin && textured) {
-    file.PutEach(n, 12, [&](char* p, std::size_t i) {
+    file->PutEach(n, 12, [&](char* p, std::size_t i) {
       std::memcpy(p, mesh.vertices[source[i]].data(), 12);
       return p + 12;
     });
-    file.PutEach(n, 12, [&](char* p, std::size_t i) {
+    file->PutEach(n, 12, [&](char* p, std::size_t i) {
       std::memcpy(p, vertex_normals[source[i]].data(), 12);
       return p + 12;
     });
-    file.PutEach(n, 8, [&](char* p, std::size_t i) {
+    file->PutEach(n, 8, [&](char* p, std::size_t i) {
       std::memcpy(p, mesh.uvs[split.uv_of[i]].data(), 8);
       return p + 8;
     });
-    file.Append(BytesOf(split.indices));
-    file.Append(*png);
-    file.Append(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
+    file->Append(BytesOf(split.indices));
+    file->Append(*png);
+    file->Append(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
   } else if (has_bin) {
-    file.Append(BytesOf(mesh.vertices));
-    file.Append(BytesOf(vertex_normals));
+    file->Append(BytesOf(mesh.vertices));
+    file->Append(BytesOf(vertex_normals));
     if (colors) {
-      file.PutEach(n, 4, [&mesh](char* p, std::size_t i) {
+      file->PutEach(n, 4, [&mesh](char* p, std::size_t i) {
         std::memcpy(p, mesh.colors[i].data(), 3);
         p[3] = static_cast<char>(255);
         return p + 4;
       });
     }
-    file.Append(BytesOf(mesh.faces));  // non-negative int indices: their unsigned int bytes
+    file->Append(BytesOf(mesh.faces));  // non-negative int indices: their unsigned int bytes
   }
-  return file.Commit();
+  return {};
 }
 
 }  // namespace internal
 
+namespace {
+
+// Opens `path`'s temporary file, fills it with `put` and commits it.
+template <class Put>
+Expected<void> WriteFile(const fs::path& path, Put put) {
+  AtomicFile file(path);
+  if (Expected<void> opened = file.Open(); !opened) return opened;
+  if (Expected<void> filled = put(&file); !filled) return filled;
+  return file.Commit();
+}
+
+const internal::StageGate& FinishedMesh() {
+  static const internal::StageGate gate(MeshStage::kDone);
+  return gate;
+}
+
+}  // namespace
+
 Expected<void> WriteObj(const Mesh& mesh, const fs::path& path) {
-  if (!mesh.HasTexture()) return internal::WriteObj(mesh, path, nullptr);
-  Expected<std::string> png = EncodePng(mesh.texture);
-  if (!png) return std::unexpected(png.error());
-  return internal::WriteObj(mesh, path, &*png);
+  if (mesh.HasTexture()) {
+    Expected<std::string> png = EncodePng(mesh.texture);
+    if (!png) return std::unexpected(png.error());
+    Expected<void> written = WriteFileAtomically(fs::path(path).replace_extension(".png"), *png);
+    if (!written) return written;
+  }
+  AtomicFile mtl(fs::path(path).replace_extension(".mtl"));
+  if (Expected<void> opened = mtl.Open(); !opened) return opened;
+  AtomicFile obj(path);
+  if (Expected<void> opened = obj.Open(); !opened) return opened;
+  if (Expected<void> put = internal::PutObj(mesh, FinishedMesh(), &obj, &mtl); !put) return put;
+  if (Expected<void> committed = mtl.Commit(); !committed) return committed;
+  return obj.Commit();
 }
 
 Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
@@ -427,7 +445,10 @@ Expected<void> WriteGlb(const Mesh& mesh, const fs::path& path) {
     if (!encoded) return std::unexpected(encoded.error());
     png = std::move(*encoded);
   }
-  return internal::WriteGlb(mesh, path, [&png] { return &png; });
+  return WriteFile(path, [&](AtomicFile* file) {
+    return internal::PutGlb(
+        mesh, FinishedMesh(), [&png] { return &png; }, file);
+  });
 }
 
 std::size_t GlbVertexCount(const Mesh& mesh) {
@@ -446,17 +467,14 @@ std::size_t GlbVertexCount(const Mesh& mesh) {
   return static_cast<std::size_t>(std::unique(pairs.begin(), pairs.end()) - pairs.begin());
 }
 
-Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
-  AtomicFile file(path);
-  if (Expected<void> opened = file.Open(); !opened) {
-    return opened;
-  }
+Expected<void> internal::PutStl(const Mesh& mesh, const StageGate& gate, AtomicFile* file) {
+  if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(file->path()));
   std::string header = "revolve binary STL: object frame, millimetres, z up";
   header.resize(80, ' ');
   const auto count = static_cast<std::uint32_t>(mesh.faces.size());
   header.append(reinterpret_cast<const char*>(&count), 4);
-  file.Append(header);
-  file.PutEach(mesh.faces.size(), 50, [&mesh](char* p, std::size_t i) {
+  file->Append(header);
+  file->PutEach(mesh.faces.size(), 50, [&mesh](char* p, std::size_t i) {
     const Eigen::Vector3i& f = mesh.faces[i];
     const Eigen::Vector3f normal = FaceNormal(mesh, f);
     std::memcpy(p, normal.data(), 12);
@@ -467,7 +485,12 @@ Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
     p[49] = 0;
     return p + 50;
   });
-  return file.Commit();
+  return {};
+}
+
+Expected<void> WriteStl(const Mesh& mesh, const fs::path& path) {
+  return WriteFile(path,
+                   [&](AtomicFile* file) { return internal::PutStl(mesh, FinishedMesh(), file); });
 }
 
 Expected<Mesh> ReadStl(const fs::path& path) {

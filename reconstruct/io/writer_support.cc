@@ -237,4 +237,33 @@ Error BadFile(const std::filesystem::path& path, std::string_view what) {
   return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
 }
 
+Error AbandonedFile(const std::filesystem::path& path) {
+  return Error{ErrorCode::kAborted,
+               fmt::format("{}: not written: the model was abandoned before it was finished",
+                           path.string())};
+}
+
+void StageGate::Reach(MeshStage stage) {
+  {
+    const std::lock_guard lock(mutex_);
+    reached_ = std::max(reached_, static_cast<int>(stage));
+  }
+  changed_.notify_all();
+}
+
+void StageGate::Abandon() {
+  {
+    const std::lock_guard lock(mutex_);
+    abandoned_ = true;
+  }
+  changed_.notify_all();
+}
+
+std::optional<MeshStage> StageGate::Wait(MeshStage stage) const {
+  std::unique_lock lock(mutex_);
+  changed_.wait(lock, [&] { return abandoned_ || reached_ >= static_cast<int>(stage); });
+  if (abandoned_) return std::nullopt;
+  return static_cast<MeshStage>(reached_);
+}
+
 }  // namespace revolve::reconstruct::internal

@@ -3,11 +3,14 @@
 #pragma once
 
 #include <array>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -65,17 +68,55 @@ class IndexTexts {
   std::vector<std::uint64_t> words_;  // WordText; empty when a text would not fit
 };
 
-// WriteObj with the texture already encoded: `png` is written beside it first; null when the
-// caller writes the PNG (the .mtl names it all the same).
-Expected<void> WriteObj(const Mesh& mesh, const std::filesystem::path& path,
-                        const std::string* png);
-// The texture's PNG for WriteGlb: called at most once, when a textured mesh's file is laid out
-// up to the image, so the PNG may still be being encoded elsewhere (it may wait for it); null
+// How far the mesh a writer reads is final (reconstruct/mesh.h's MeshStage): the writers of a
+// ModelWriter run while the mesh is made and wait here before reading each field.
+class StageGate {
+ public:
+  // A gate already at `reached` (kDone: a finished mesh, where no writer waits), or at none.
+  explicit StageGate(std::optional<MeshStage> reached = std::nullopt)
+      : reached_(reached ? static_cast<int>(*reached) : -1) {}
+  // The mesh reached `stage` (an earlier stage than one reached before: nothing changes).
+  void Reach(MeshStage stage);
+  // The mesh will not be finished: every Wait, now and later, returns nullopt.
+  void Abandon();
+  // Blocks until the mesh has reached `stage` or a later one, and returns the stage reached;
+  // nullopt once the gate is abandoned.
+  std::optional<MeshStage> Wait(MeshStage stage) const;
+
+ private:
+  mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;
+  int reached_;
+  bool abandoned_ = false;
+};
+
+// Whether a mesh that reached `stage` (kUvs or later) is written with its texture: kUvs promises
+// one, kDone has it or not.
+inline bool TexturedAt(const Mesh& mesh, MeshStage stage) {
+  return stage == MeshStage::kUvs || (stage == MeshStage::kDone && mesh.HasTexture());
+}
+
+// aborted "<path>: ...": the gate was abandoned before the writer of `path` could finish.
+Error AbandonedFile(const std::filesystem::path& path);
+
+// The texture's PNG for the glTF writer: called at most once, when a textured mesh's file is laid
+// out up to the image, so the PNG may still be being encoded elsewhere (it may wait for it); null
 // when it could not be encoded.
 using PngSource = std::function<const std::string*()>;
-// WriteGlb with the texture's PNG from `png` (unused without a texture). Error: internal when
-// `png` gives null.
-Expected<void> WriteGlb(const Mesh& mesh, const std::filesystem::path& path, const PngSource& png);
+
+// The bytes of each format (mesh_io.h says what they hold) into `file`, opened and not yet
+// synced, each field of `mesh` read only once `gate` has it final; the caller syncs and publishes
+// the file. Errors: aborted (AbandonedFile) when the gate is abandoned first (the file is then
+// incomplete); internal when `png` gives null.
+Expected<void> PutPly(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
+Expected<void> PutStl(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
+// Plain VRML only (not the meridian's view-dependent one).
+Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
+// The .obj into `obj` and its material library into `mtl` (both opened); the PNG the .mtl names
+// is the caller's to write.
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl);
+Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& png,
+                      AtomicFile* file);
 
 // Unit normal of each vertex: the area-weighted sum of its faces' normals; +z where that is zero.
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh);

@@ -141,6 +141,7 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
   if (options.vertex_colors) {
     stats.unseen_vertices = ColorVertices(seen.color_sum, mesh);
   }
+  if (options.on_stage) options.on_stage(MeshStage::kColors);
   if (!options.atlas) {
     return stats;
   }
@@ -156,9 +157,10 @@ Expected<TextureStats> TextureMesh(Mesh* mesh, const std::vector<View>& views,
     return std::unexpected(packing.error());
   }
   stats.atlas_scale = packing->scale;
-  cv::Mat atlas = DrawAtlas(charts, source, *packing, images, origins);
+  // The uvs first, for the writers waiting for them (they do not depend on the atlas's pixels).
   AssignUvs(charts, std::move(projected), *packing, mesh);
-  mesh->texture = atlas;
+  if (options.on_stage) options.on_stage(MeshStage::kUvs);
+  mesh->texture = DrawAtlas(charts, source, *packing, images, origins);
   return stats;
 }
 

@@ -46,6 +46,11 @@ struct TextureOptions {
   int texture_size_px = 4096;  // largest atlas side, 64..16384
   // A view colours a point only when it sees it at less than this angle from its normal.
   double max_angle_deg = 85.0;
+  // Told when the mesh reaches kColors (its normals and colours set) and, with an atlas, kUvs
+  // (its uvs set; the texture image follows before TextureMesh returns), for a ModelWriter
+  // (reconstruct/io/model_writer.h) to write those files meanwhile. Vertices and faces are never
+  // changed.
+  MeshStageHook on_stage;
 };
 
 // What TextureMesh did, for logs and reports.

@@ -7,7 +7,7 @@
 
 #include "base/atomic_file.h"
 #include "base/image_read.h"
-#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/model_writer.h"
 #include "reconstruct/metrics/metrics.h"
 #include "station/commands/scan_command.h"
 #include "station/report_json.h"
@@ -158,17 +158,23 @@ int RunReconstructCommand(const ReconstructCommandOptions& options, std::stop_to
       return kExitFailed;
     }
   }
-  auto mesh = geometry->Finish();
-  if (!mesh) {
-    fmt::print(err, "revolve reconstruct: meshing: {}\n", mesh.error().message);
+  // The files are written while the mesh is made (reconstruct/io/model_writer.h).
+  reconstruct::Mesh mesh;  // before the writer, which borrows it
+  auto writer = reconstruct::ModelWriter::Start(mesh, out_dir, "model", recon.formats);
+  if (!writer) {
+    fmt::print(err, "revolve reconstruct: {}\n", writer.error().message);
     return kExitFailed;
   }
-  auto files = reconstruct::WriteModel(*mesh, out_dir, "model", recon.formats);
+  if (auto made = geometry->Finish(&mesh, (*writer)->Hook()); !made) {
+    fmt::print(err, "revolve reconstruct: meshing: {}\n", made.error().message);
+    return kExitFailed;
+  }
+  auto files = (*writer)->Finish();
   if (!files) {
     fmt::print(err, "revolve reconstruct: {}\n", files.error().message);
     return kExitFailed;
   }
-  const reconstruct::MeshStats stats = reconstruct::ComputeStats(*mesh);
+  const reconstruct::MeshStats stats = reconstruct::ComputeStats(mesh);
   // The report of this model, next to it: the scan's own report.json when the model replaces
   // the scan's, else in --out. A report of an earlier model is never left beside a new one.
   const std::filesystem::path report_file =

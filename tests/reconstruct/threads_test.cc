@@ -20,10 +20,12 @@
 #include "reconstruct/hull/silhouette_consensus.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/model_writer.h"
 #include "reconstruct/io/writer_support.h"
 #include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/parallel.h"
+#include "reconstruct/reconstructor.h"
 #include "reconstruct/texture/texture.h"
 #include "reconstruct/texture/texture_internal.h"
 #include "reconstruct/union_find.h"
@@ -159,6 +161,61 @@ TEST(Threads, OneThreadAndAllCoresWriteTheSameBytes) {
     EXPECT_GT(bytes.size(), 0u) << name;
     EXPECT_TRUE(bytes == all.at(name)) << name << " differs between 1 thread and all cores";
   }
+}
+
+// The live finish as the station makes it: the hull reconstructor telling a ModelWriter of each
+// stage of the mesh (the STL written from the surface while the colours are made, the PLY and
+// VRML from the colours while the atlas is made, ...). Every file is the same bytes as
+// WriteModel's of the finished mesh, and as the one-thread finish above, on one thread and on
+// all cores.
+TEST(Threads, FilesWrittenWhileTheMeshIsMadeAreWriteModelsBytes) {
+  const SmallScan scan = MakeScan(18);
+  const fs::path dir =
+      fs::temp_directory_path() / ("revolve_threads_staged_" + std::to_string(::getpid()));
+  const std::map<std::string, std::string> reference = Finish(scan, 1, dir / "reference");
+  const std::vector<std::string> formats = {"ply", "obj", "stl", "glb", "wrl"};
+  for (const int threads : {1, 8}) {
+    SCOPED_TRACE(::testing::Message() << threads << " threads");
+    const ThreadLimit limit(threads);
+    ReconstructOptions options;
+    options.bbox_min_mm = {-60, -60, 0};
+    options.bbox_max_mm = {60, 60, 120};
+    options.resolution = 96;
+    std::unique_ptr<Reconstructor> reconstructor = Create(options).value();
+    for (std::size_t k = 0; k < scan.views.size(); ++k) {
+      ASSERT_TRUE(reconstructor->Integrate(scan.masks[k], scan.images[k], scan.views[k]));
+    }
+    const fs::path staged = dir / ("staged" + std::to_string(threads));
+    const fs::path after = dir / ("after" + std::to_string(threads));
+    fs::create_directories(staged);
+    fs::create_directories(after);
+    Mesh mesh;
+    std::vector<MeshStage> stages;
+    Expected<std::unique_ptr<ModelWriter>> writer =
+        ModelWriter::Start(mesh, staged, "model", formats);
+    ASSERT_TRUE(writer);
+    ASSERT_TRUE(reconstructor->FinishStaged(&mesh, [&](MeshStage stage) {
+      stages.push_back(stage);
+      (*writer)->Reached(stage);
+    }));
+    EXPECT_EQ(stages, (std::vector<MeshStage>{MeshStage::kSurface, MeshStage::kColors,
+                                              MeshStage::kUvs, MeshStage::kDone}));
+    const Expected<std::vector<fs::path>> files = (*writer)->Finish();
+    ASSERT_TRUE(files) << files.error().ToString();
+    const Expected<std::vector<fs::path>> again = WriteModel(mesh, after, "model", formats);
+    ASSERT_TRUE(again);
+    ASSERT_EQ(files->size(), 7u);  // ply, obj, mtl, png, stl, glb, wrl
+    ASSERT_EQ(again->size(), files->size());
+    for (std::size_t i = 0; i < files->size(); ++i) {
+      const std::string name = (*files)[i].filename().string();
+      EXPECT_EQ(name, (*again)[i].filename().string());
+      const std::string bytes = Bytes((*files)[i]);
+      EXPECT_GT(bytes.size(), 0u) << name;
+      EXPECT_TRUE(bytes == Bytes((*again)[i])) << name << " differs from WriteModel's";
+      EXPECT_TRUE(bytes == reference.at(name)) << name << " differs from the one-thread finish";
+    }
+  }
+  fs::remove_all(dir);
 }
 
 // The silhouette consensus (one carve per view, the leave-one-out hulls on all cores): the same
