@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "reconstruct/image_set.h"
+#include "reconstruct/metrics/outline_internal.h"
 #include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
@@ -73,159 +74,6 @@ void ClipRun(const Edge& edge, double sign, int v, int* lo, int* hi) {
     while (u <= *hi && !inside(u)) ++u;
     *lo = u;
   }
-}
-
-// An edge of a closed, consistently oriented mesh: a -> b as face `left` runs it, b -> a as
-// face `right` does.
-struct SharedEdge {
-  int a, b, left, right;
-};
-
-// Every edge of `mesh` once, with its two faces; empty when some edge is not used exactly once
-// in each direction (the mesh is not closed and consistently oriented).
-std::vector<SharedEdge> SharedEdges(const Mesh& mesh) {
-  const std::size_t n = mesh.vertices.size();
-  // Each vertex's outgoing edges (target, face), grouped by vertex.
-  std::vector<std::size_t> first(n + 1, 0);
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
-  }
-  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
-  std::vector<std::pair<int, int>> out(first[n]);
-  std::vector<std::size_t> next(first.begin(), first.end() - 1);
-  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
-    const Eigen::Vector3i& f = mesh.faces[face];
-    for (int e = 0; e < 3; ++e) {
-      out[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
-    }
-  }
-  const auto face_of = [&](int from, int to) {
-    int found = -1;
-    for (std::size_t k = first[static_cast<std::size_t>(from)];
-         k < first[static_cast<std::size_t>(from) + 1]; ++k) {
-      if (out[k].first != to) continue;
-      if (found >= 0) return -2;  // used twice
-      found = out[k].second;
-    }
-    return found;
-  };
-  std::vector<SharedEdge> edges;
-  edges.reserve(mesh.faces.size() * 3 / 2);
-  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
-    const Eigen::Vector3i& f = mesh.faces[face];
-    for (int e = 0; e < 3; ++e) {
-      const int a = f[e];
-      const int b = f[(e + 1) % 3];
-      if (a == b) return {};
-      const int right = face_of(b, a);
-      if (right < 0 || face_of(a, b) != static_cast<int>(face)) return {};
-      if (a < b) edges.push_back({a, b, static_cast<int>(face), right});
-    }
-  }
-  return edges;
-}
-
-// A silhouette within its bounding rectangle: `pixels` (CV_8UC1 0/255, the rectangle's size)
-// are the image's pixels in `box`; none outside is set.
-struct BoxedSilhouette {
-  cv::Rect box;
-  cv::Mat pixels;
-};
-
-// The silhouette of a closed mesh from its outline: the pixels whose centre the outline winds
-// around (its edges between a face of positive projected area and one of another, directed as
-// the positive face runs them: the boundary of the positive faces' union, which is the
-// silhouette, RenderSilhouette's `closed`), and those on the outline (drawn faces hold their
-// edges). Each outline edge adds its direction to the pixels of each row it crosses (rows v
-// with min(y) <= v < max(y)) from its crossing rightwards; a running sum along the row is the
-// winding number. The same pixels as drawing the faces but for pixel centres within rounding of
-// the outline (not on it). Within the rectangle of the projected vertices only. nullopt when a
-// vertex is not in front of the camera (the caller draws the faces then).
-std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh,
-                                                     const std::vector<SharedEdge>& edges,
-                                                     const View& view) {
-  std::vector<Eigen::Vector2d> projected(mesh.vertices.size());
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector2d hi = -lo;
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    // View::Project's expression, inlined.
-    const Eigen::Vector3d h =
-        view.pixel_from_object.leftCols<3>() * mesh.vertices[i].cast<double>() +
-        view.pixel_from_object.col(3);
-    if (h.z() <= 0.0) return std::nullopt;
-    projected[i] = h.head<2>() / h.z();
-    lo = lo.cwiseMin(projected[i]);
-    hi = hi.cwiseMax(projected[i]);
-  }
-  if (!lo.allFinite() || !hi.allFinite()) return std::nullopt;
-  std::vector<std::uint8_t> positive(mesh.faces.size());
-  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
-    const Eigen::Vector3i& f = mesh.faces[i];
-    const Eigen::Vector2d& p0 = projected[f[0]];
-    const Eigen::Vector2d& p1 = projected[f[1]];
-    const Eigen::Vector2d& p2 = projected[f[2]];
-    const double area =
-        (p1.x() - p0.x()) * (p2.y() - p0.y()) - (p1.y() - p0.y()) * (p2.x() - p0.x());
-    positive[i] = area > 0.0 && std::isfinite(area);
-  }
-  BoxedSilhouette result;
-  const double u_first = std::max(0.0, std::ceil(lo.x()));
-  const double v_first = std::max(0.0, std::ceil(lo.y()));
-  const double u_last = std::min(view.width_px - 1.0, std::floor(hi.x()));
-  const double v_last = std::min(view.height_px - 1.0, std::floor(hi.y()));
-  if (u_first > u_last || v_first > v_last) return result;
-  const int x0 = static_cast<int>(u_first);
-  const int y0 = static_cast<int>(v_first);
-  result.box =
-      cv::Rect(x0, y0, static_cast<int>(u_last) - x0 + 1, static_cast<int>(v_last) - y0 + 1);
-  const int width = result.box.width;
-  const int height = result.box.height;
-  cv::Mat winding(height, width + 1, CV_32S, cv::Scalar(0));
-  std::vector<cv::Point> on_outline;  // in the box's coordinates
-  const auto on = [&](double x, int v) {
-    if (x == std::floor(x) && x >= x0 && x < x0 + width) {
-      on_outline.emplace_back(static_cast<int>(x) - x0, v);
-    }
-  };
-  for (const SharedEdge& e : edges) {
-    if (positive[e.left] == positive[e.right]) continue;
-    const Eigen::Vector2d& p = projected[positive[e.left] ? e.a : e.b];
-    const Eigen::Vector2d& q = projected[positive[e.left] ? e.b : e.a];
-    const double top = std::min(p.y(), q.y());
-    const double bottom = std::max(p.y(), q.y());
-    if (top == bottom) {
-      if (top == std::floor(top) && top >= y0 && top < y0 + height) {
-        const double left = std::max<double>(x0, std::ceil(std::min(p.x(), q.x())));
-        const double right = std::min<double>(x0 + width - 1, std::floor(std::max(p.x(), q.x())));
-        for (double x = left; x <= right; ++x) on(x, static_cast<int>(top) - y0);
-      }
-      continue;
-    }
-    const int direction = q.y() > p.y() ? 1 : -1;
-    const int v_top = std::max(y0, static_cast<int>(std::ceil(top)));
-    const int v_bottom = std::min(y0 + height - 1, static_cast<int>(std::floor(bottom)));
-    const double slope = (q.x() - p.x()) / (q.y() - p.y());
-    for (int v = v_top; v <= v_bottom; ++v) {
-      const double x = p.x() + (static_cast<double>(v) - p.y()) * slope;
-      on(x, v - y0);
-      if (static_cast<double>(v) == bottom) continue;  // rows top <= v < bottom cross
-      const double u =
-          std::clamp(std::ceil(x), static_cast<double>(x0), static_cast<double>(x0 + width));
-      winding.ptr<int>(v - y0)[static_cast<int>(u) - x0] += direction;
-    }
-  }
-  result.pixels = cv::Mat(height, width, CV_8UC1);
-  for (int v = 0; v < height; ++v) {
-    const int* w = winding.ptr<int>(v);
-    auto* row = result.pixels.ptr<std::uint8_t>(v);
-    int sum = 0;
-    for (int u = 0; u < width; ++u) {
-      sum += w[u];
-      row[u] = sum != 0 ? 255 : 0;
-    }
-  }
-  for (const cv::Point& pixel : on_outline) result.pixels.at<std::uint8_t>(pixel) = 255;
-  return result;
 }
 
 }  // namespace
@@ -301,19 +149,32 @@ double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
              : static_cast<double>(cv::countNonZero(both)) / static_cast<double>(union_px);
 }
 
-ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<cv::Mat>& masks,
-                                         const std::vector<cv::Point>& mask_origins) {
+namespace outline_internal {
+
+ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<View>& views,
+                                           const std::vector<cv::Mat>& masks,
+                                           const std::vector<cv::Point>& mask_origins,
+                                           bool every_edge) {
   ReprojectionStats stats;
   // The views on all cores, each IoU in its slot; the sum and the worst in view order.
   stats.iou.resize(views.size());
-  const std::vector<SharedEdge> edges = SharedEdges(mesh);  // empty: not closed
+  std::optional<OutlineIndex> index;
+  std::vector<SharedEdge> edges;  // every_edge
+  if (every_edge) {
+    edges = SharedEdges(mesh);
+  } else {
+    index.emplace(mesh);
+  }
+  const bool closed = every_edge ? !edges.empty() : index->closed();  // else face by face
   ParallelFor(0, views.size(), [&](std::size_t i) {
     std::optional<BoxedSilhouette> outline;
-    if (!edges.empty()) outline = SilhouetteFromOutline(mesh, edges, views[i]);
+    if (closed) {
+      outline = every_edge ? SilhouetteFromEveryEdge(mesh, edges, views[i])
+                           : SilhouetteFromOutline(mesh, *index, views[i]);
+    }
     const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     if (!outline) {
-      const cv::Mat rendered = RenderSilhouette(mesh, views[i], !edges.empty());
+      const cv::Mat rendered = RenderSilhouette(mesh, views[i], closed);
       stats.iou[i] = MaskIoU(rendered, mask_origins.empty()
                                            ? masks[i]
                                            : WholeFromWindow(masks[i], origin, rendered.size()));
@@ -347,6 +208,15 @@ ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<Vie
   }
   if (!views.empty()) stats.mean = sum / static_cast<double>(views.size());
   return stats;
+}
+
+}  // namespace outline_internal
+
+ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<View>& views,
+                                         const std::vector<cv::Mat>& masks,
+                                         const std::vector<cv::Point>& mask_origins) {
+  return outline_internal::SilhouetteReprojectionBy(mesh, views, masks, mask_origins,
+                                                    /*every_edge=*/false);
 }
 
 InsideTest MeshInsideTest(const Mesh& mesh) {

@@ -1,0 +1,460 @@
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "reconstruct/metrics/outline_internal.h"
+#include "reconstruct/parallel.h"
+
+namespace revolve::reconstruct::outline_internal {
+namespace {
+
+// A face's orientation is taken from its plane only when the plane is at least this far (rad)
+// from every ray of the camera to the mesh: its projected area then is at least ~1e-3 of its
+// size, far from its rounding (below), and the float plane's own rounding (~1e-7) is well inside.
+constexpr double kGrazingMarginRad = 1e-3;
+// ... when the face's smallest altitude is at least this fraction of the view's coordinate scale
+// (camera distance, mesh size and offsets: what the projection's rounding grows with). The
+// projected area's rounding bounds the altitude whose sign it can flip to ~1e-10 of that scale
+// for projections within ~100 focal lengths of the image (below): 1000 times to spare.
+constexpr double kMinHeightOfScale = 1e-7;
+// ... and, for a pinhole view, when every point of the mesh's sphere lies at a depth of at least
+// this fraction of its distance from the camera (its projections within ~100 focal lengths).
+constexpr double kMinDepthOfDistance = 1e-2;
+
+// View::Project's expression, inlined: every path projects a vertex with it, so the same vertex
+// is the same point in all.
+[[gnu::always_inline]] inline Eigen::Vector3d Homogeneous(const View& view,
+                                                          const Eigen::Vector3f& vertex) {
+  return view.pixel_from_object.leftCols<3>() * vertex.cast<double>() +
+         view.pixel_from_object.col(3);
+}
+
+// Whether the face p0 p1 p2 has a positive (and finite) projected area.
+[[gnu::always_inline]] inline bool Positive(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1,
+                                            const Eigen::Vector2d& p2) {
+  const double area = (p1.x() - p0.x()) * (p2.y() - p0.y()) - (p1.y() - p0.y()) * (p2.x() - p0.x());
+  return area > 0.0 && std::isfinite(area);
+}
+
+// An outline edge, p -> q as its positive face runs it.
+struct Segment {
+  Eigen::Vector2d p, q;
+};
+
+// The pixels `segments` wind around or run through, within the rectangle [lo, hi] (clipped to
+// the view). Each segment adds its direction to the pixels of each row it crosses (rows v with
+// min(y) <= v < max(y)) from its crossing rightwards; a running sum along the row is the winding
+// number.
+BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo,
+                     const Eigen::Vector2d& hi, const View& view) {
+  BoxedSilhouette result;
+  const double u_first = std::max(0.0, std::ceil(lo.x()));
+  const double v_first = std::max(0.0, std::ceil(lo.y()));
+  const double u_last = std::min(view.width_px - 1.0, std::floor(hi.x()));
+  const double v_last = std::min(view.height_px - 1.0, std::floor(hi.y()));
+  if (u_first > u_last || v_first > v_last) return result;
+  const int x0 = static_cast<int>(u_first);
+  const int y0 = static_cast<int>(v_first);
+  result.box =
+      cv::Rect(x0, y0, static_cast<int>(u_last) - x0 + 1, static_cast<int>(v_last) - y0 + 1);
+  const int width = result.box.width;
+  const int height = result.box.height;
+  cv::Mat winding(height, width + 1, CV_32S, cv::Scalar(0));
+  std::vector<cv::Point> on_outline;  // in the box's coordinates
+  const auto on = [&](double x, int v) {
+    if (x == std::floor(x) && x >= x0 && x < x0 + width) {
+      on_outline.emplace_back(static_cast<int>(x) - x0, v);
+    }
+  };
+  for (const Segment& s : segments) {
+    const Eigen::Vector2d& p = s.p;
+    const Eigen::Vector2d& q = s.q;
+    const double top = std::min(p.y(), q.y());
+    const double bottom = std::max(p.y(), q.y());
+    if (top == bottom) {
+      if (top == std::floor(top) && top >= y0 && top < y0 + height) {
+        const double left = std::max<double>(x0, std::ceil(std::min(p.x(), q.x())));
+        const double right = std::min<double>(x0 + width - 1, std::floor(std::max(p.x(), q.x())));
+        for (double x = left; x <= right; ++x) on(x, static_cast<int>(top) - y0);
+      }
+      continue;
+    }
+    const int direction = q.y() > p.y() ? 1 : -1;
+    const int v_top = std::max(y0, static_cast<int>(std::ceil(top)));
+    const int v_bottom = std::min(y0 + height - 1, static_cast<int>(std::floor(bottom)));
+    const double slope = (q.x() - p.x()) / (q.y() - p.y());
+    for (int v = v_top; v <= v_bottom; ++v) {
+      const double x = p.x() + (static_cast<double>(v) - p.y()) * slope;
+      on(x, v - y0);
+      if (static_cast<double>(v) == bottom) continue;  // rows top <= v < bottom cross
+      const double u =
+          std::clamp(std::ceil(x), static_cast<double>(x0), static_cast<double>(x0 + width));
+      winding.ptr<int>(v - y0)[static_cast<int>(u) - x0] += direction;
+    }
+  }
+  result.pixels = cv::Mat(height, width, CV_8UC1);
+  for (int v = 0; v < height; ++v) {
+    const int* w = winding.ptr<int>(v);
+    auto* row = result.pixels.ptr<std::uint8_t>(v);
+    int sum = 0;
+    for (int u = 0; u < width; ++u) {
+      sum += w[u];
+      row[u] = sum != 0 ? 255 : 0;
+    }
+  }
+  for (const cv::Point& pixel : on_outline) result.pixels.at<std::uint8_t>(pixel) = 255;
+  return result;
+}
+
+// How one view decides a face from its plane (unit normal n, offset d = n . x): s = n . p - d k
+// with (p, k) = (camera centre, 1) for a pinhole view, where the projected area is
+// det(M) ((x - c) . n) / (z0 z1 z2) as h_i = M (x_i - c), or (r1 x r2, 0) for an orthographic
+// one, where it is (r1 x r2) . n / s^2. Decided when |s| > threshold and the face's altitude is
+// above min_height: positive iff (s > 0) != flip.
+struct PlaneTest {
+  bool usable = false;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  double k = 0.0;
+  double threshold = 0.0;
+  double min_height = 0.0;
+  bool flip = false;
+};
+
+PlaneTest PlaneTestOf(const OutlineIndex& index, const View& view) {
+  PlaneTest test;
+  const Eigen::Matrix3d m = view.pixel_from_object.leftCols<3>();
+  const Eigen::Vector3d t = view.pixel_from_object.col(3);
+  const Eigen::Vector3d& o = index.mesh_centre();
+  const double r = index.mesh_radius();
+  const double margin = std::sin(kGrazingMarginRad);
+  if (view.IsAffine()) {
+    const Eigen::Vector3d direction = m.row(0).cross(m.row(1)).transpose();
+    const double norm = direction.norm();
+    if (!(norm > 0.0) || !std::isfinite(norm)) return test;
+    test.point = direction;
+    test.threshold = (margin + 1e-5) * norm;
+    test.min_height = kMinHeightOfScale * (o.norm() + r + t.head<2>().norm() / std::sqrt(norm));
+    test.usable = true;
+    return test;
+  }
+  const double det = m.determinant();
+  const double size = m.cwiseAbs().maxCoeff();
+  if (!(std::abs(det) > 1e-9 * size * size * size) || !std::isfinite(det)) return test;
+  const Eigen::Vector3d centre = -m.inverse() * t;
+  if (!centre.allFinite()) return test;
+  const Eigen::Vector3d w = m.row(2).transpose();
+  const double distance = (o - centre).norm();
+  if (!(w.dot(o - centre) - w.norm() * r > kMinDepthOfDistance * w.norm() * (distance + r))) {
+    return test;
+  }
+  test.point = centre;
+  test.k = 1.0;
+  test.threshold = margin * (distance + r) + 1e-5 * (distance + r + o.norm() + centre.norm());
+  test.min_height = kMinHeightOfScale * (distance + r + o.norm() + centre.norm());
+  test.flip = det > 0.0;
+  test.usable = true;
+  return test;
+}
+
+// Whether every vertex within the mesh's sphere has a computed depth above 0 in `view`.
+bool EveryVertexInFront(const OutlineIndex& index, const View& view) {
+  if (!index.finite()) return false;
+  const Eigen::Vector3d w = view.pixel_from_object.block<1, 3>(2, 0).transpose();
+  const double m = view.pixel_from_object(2, 3);
+  const Eigen::Vector3d& o = index.mesh_centre();
+  const double r = index.mesh_radius();
+  const double lowest = w.dot(o) + m - w.norm() * r;
+  return lowest > 1e-9 * (w.norm() * (o.norm() + r) + std::abs(m));
+}
+
+}  // namespace
+
+std::vector<SharedEdge> SharedEdges(const Mesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
+  // Each vertex's outgoing edges (target, face), grouped by vertex.
+  std::vector<std::size_t> first(n + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
+  std::vector<std::pair<int, int>> out(first[n]);
+  std::vector<std::size_t> next(first.begin(), first.end() - 1);
+  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
+    const Eigen::Vector3i& f = mesh.faces[face];
+    for (int e = 0; e < 3; ++e) {
+      out[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
+    }
+  }
+  const auto face_of = [&](int from, int to) {
+    int found = -1;
+    for (std::size_t k = first[static_cast<std::size_t>(from)];
+         k < first[static_cast<std::size_t>(from) + 1]; ++k) {
+      if (out[k].first != to) continue;
+      if (found >= 0) return -2;  // used twice
+      found = out[k].second;
+    }
+    return found;
+  };
+  std::vector<SharedEdge> edges;
+  edges.reserve(mesh.faces.size() * 3 / 2);
+  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
+    const Eigen::Vector3i& f = mesh.faces[face];
+    for (int e = 0; e < 3; ++e) {
+      const int a = f[e];
+      const int b = f[(e + 1) % 3];
+      if (a == b) return {};
+      const int right = face_of(b, a);
+      if (right < 0 || face_of(a, b) != static_cast<int>(face)) return {};
+      if (a < b) edges.push_back({a, b, static_cast<int>(face), right});
+    }
+  }
+  return edges;
+}
+
+std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
+                                                       const std::vector<SharedEdge>& edges,
+                                                       const View& view) {
+  std::vector<Eigen::Vector2d> projected(mesh.vertices.size());
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector2d hi = -lo;
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[i]);
+    if (h.z() <= 0.0) return std::nullopt;
+    projected[i] = h.head<2>() / h.z();
+    lo = lo.cwiseMin(projected[i]);
+    hi = hi.cwiseMax(projected[i]);
+  }
+  if (!lo.allFinite() || !hi.allFinite()) return std::nullopt;
+  std::vector<std::uint8_t> positive(mesh.faces.size());
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    positive[i] = Positive(projected[f[0]], projected[f[1]], projected[f[2]]);
+  }
+  std::vector<Segment> segments;
+  for (const SharedEdge& e : edges) {
+    if (positive[e.left] == positive[e.right]) continue;
+    segments.push_back(
+        {projected[positive[e.left] ? e.a : e.b], projected[positive[e.left] ? e.b : e.a]});
+  }
+  return Fill(segments, lo, hi, view);
+}
+
+std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
+  const std::size_t face_count = mesh.faces.size();
+  // Each vertex's outgoing edges (target, face), grouped by vertex.
+  std::vector<std::uint32_t> first(n + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
+  std::vector<std::pair<int, int>> out(first[n]);
+  {
+    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
+    for (std::size_t face = 0; face < face_count; ++face) {
+      const Eigen::Vector3i& f = mesh.faces[face];
+      for (int e = 0; e < 3; ++e) {
+        out[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
+      }
+    }
+  }
+  // The face running from -> to; -1 none, -2 more than one.
+  const auto face_of = [&](int from, int to) {
+    int found = -1;
+    for (std::uint32_t k = first[static_cast<std::size_t>(from)];
+         k < first[static_cast<std::size_t>(from) + 1]; ++k) {
+      if (out[k].first != to) continue;
+      if (found >= 0) return -2;
+      found = out[k].second;
+    }
+    return found;
+  };
+  std::vector<Eigen::Vector3i> neighbours(face_count);
+  std::atomic<bool> closed = true;
+  ParallelChunks(0, face_count, 8192, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t face = begin; face < end; ++face) {
+      const Eigen::Vector3i& f = mesh.faces[face];
+      for (int e = 0; e < 3; ++e) {
+        const int a = f[e];
+        const int b = f[(e + 1) % 3];
+        const int across = a == b ? -1 : face_of(b, a);
+        if (across < 0 || face_of(a, b) != static_cast<int>(face)) {
+          closed.store(false, std::memory_order_relaxed);
+          return;
+        }
+        neighbours[face][e] = across;
+      }
+    }
+  });
+  if (!closed.load()) return {};
+  return neighbours;
+}
+
+OutlineIndex::OutlineIndex(const Mesh& mesh) : neighbours_(FaceNeighbours(mesh)) {
+  if (neighbours_.empty()) return;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    const Eigen::Vector3d p = v.cast<double>();
+    if (!p.allFinite()) return;  // finite_ false: every view projects every vertex
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  finite_ = true;
+  mesh_centre_ = 0.5 * (lo + hi);
+  double r2 = 0.0;
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    r2 = std::max(r2, (v.cast<double>() - mesh_centre_).squaredNorm());
+  }
+  mesh_radius_ = std::sqrt(r2) * (1.0 + 1e-9);
+  const std::size_t face_count = mesh.faces.size();
+  for (std::vector<float>* v : {&normal_x_, &normal_y_, &normal_z_, &offset_, &height_}) {
+    v->resize(face_count);
+  }
+  ParallelFor(
+      0, face_count,
+      [&](std::size_t i) {
+        const Eigen::Vector3i& f = mesh.faces[i];
+        const Eigen::Vector3d a = mesh.vertices[f[0]].cast<double>();
+        const Eigen::Vector3d b = mesh.vertices[f[1]].cast<double>();
+        const Eigen::Vector3d c = mesh.vertices[f[2]].cast<double>();
+        const Eigen::Vector3d n = (b - a).cross(c - a);
+        const double n_norm = n.norm();
+        const double longest = std::sqrt(
+            std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+        // A degenerate face (no normal) keeps a zero plane and altitude: never decided by them.
+        if (!(n_norm > 0.0) || !(longest > 0.0)) {
+          normal_x_[i] = normal_y_[i] = normal_z_[i] = offset_[i] = height_[i] = 0.0f;
+          return;
+        }
+        const Eigen::Vector3d unit = n / n_norm;
+        normal_x_[i] = static_cast<float>(unit.x());
+        normal_y_[i] = static_cast<float>(unit.y());
+        normal_z_[i] = static_cast<float>(unit.z());
+        offset_[i] = static_cast<float>(unit.dot(a));
+        height_[i] = static_cast<float>(n_norm / longest);
+      },
+      4096);
+}
+
+namespace {
+
+// Each face's orientation in `view` (1 positive, 0 not) as far as its plane decides it (into
+// `positive`); the faces it does not decide, in order, into `undecided`. Returns their count.
+std::size_t OrientationsFromPlanes(const OutlineIndex& index, const PlaneTest& test,
+                                   std::uint8_t* positive, std::uint32_t* undecided) {
+  const std::size_t face_count = index.normal_x().size();
+  const float* nx = index.normal_x().data();
+  const float* ny = index.normal_y().data();
+  const float* nz = index.normal_z().data();
+  const float* offset = index.offset().data();
+  const float* height = index.height().data();
+  const auto px = static_cast<float>(test.point.x());
+  const auto py = static_cast<float>(test.point.y());
+  const auto pz = static_cast<float>(test.point.z());
+  const auto k = static_cast<float>(test.k);
+  const auto threshold = static_cast<float>(test.threshold);
+  const auto min_height = static_cast<float>(test.min_height);
+  const std::uint8_t flip = test.flip ? 1 : 0;
+  std::size_t count = 0;
+  // In floats: the rounding (~1e-7 of |p| + |x|) is within the threshold's allowance. No branch
+  // on the outcome: the undecided are listed by always writing and advancing when undecided.
+  for (std::size_t i = 0; i < face_count; ++i) {
+    const float s = nx[i] * px + ny[i] * py + nz[i] * pz - offset[i] * k;
+    const auto decided =
+        static_cast<std::uint8_t>((std::abs(s) > threshold) & (height[i] > min_height));
+    positive[i] = static_cast<std::uint8_t>((static_cast<std::uint8_t>(s > 0.0f) ^ flip) & decided);
+    undecided[count] = static_cast<std::uint32_t>(i);
+    count += decided ^ 1u;
+  }
+  return count;
+}
+
+}  // namespace
+
+std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const OutlineIndex& index,
+                                                     const View& view, OutlineCounts* counts) {
+  OutlineCounts local_counts;
+  OutlineCounts& count = counts ? *counts : local_counts;
+  count = {};
+  const std::size_t face_count = mesh.faces.size();
+  count.faces = static_cast<int>(face_count);
+  // Each vertex projected once, when first needed.
+  std::unique_ptr<Eigen::Vector2d[]> projected(new Eigen::Vector2d[mesh.vertices.size()]);
+  std::vector<std::uint8_t> done(mesh.vertices.size(), 0);
+  const auto project = [&](int vertex) -> const Eigen::Vector2d& {
+    if (!done[vertex]) {
+      const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
+      projected[vertex] = h.head<2>() / h.z();
+      done[vertex] = 1;
+    }
+    return projected[vertex];
+  };
+  std::vector<std::uint8_t> positive(face_count);  // 1 positive, 0 not
+  // The faces whose planes do not decide them (not initialised: only the listed are read).
+  const std::unique_ptr<std::uint32_t[]> undecided(new std::uint32_t[face_count]);
+  std::size_t undecided_count = face_count;
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector2d hi = -lo;
+  const bool every_face = !EveryVertexInFront(index, view);
+  const PlaneTest test = every_face ? PlaneTest{} : PlaneTestOf(index, view);
+  if (every_face) {
+    // SilhouetteFromEveryEdge's check and box.
+    count.every_face = true;
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+      const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[i]);
+      if (h.z() <= 0.0) return std::nullopt;
+      projected[i] = h.head<2>() / h.z();
+      done[i] = 1;
+      lo = lo.cwiseMin(projected[i]);
+      hi = hi.cwiseMax(projected[i]);
+    }
+    if (!lo.allFinite() || !hi.allFinite()) return std::nullopt;
+  }
+  if (test.usable) {
+    undecided_count = OrientationsFromPlanes(index, test, positive.data(), undecided.get());
+  } else {
+    for (std::size_t i = 0; i < face_count; ++i) undecided[i] = static_cast<std::uint32_t>(i);
+  }
+  for (std::size_t k = 0; k < undecided_count; ++k) {
+    const Eigen::Vector3i& f = mesh.faces[undecided[k]];
+    positive[undecided[k]] = Positive(project(f[0]), project(f[1]), project(f[2]));
+  }
+  count.decided = static_cast<int>(face_count - undecided_count);
+  // The outline: each positive face's edges to a face that is not, as it runs them (projected
+  // again where a vertex is met again: cheaper than looking it up).
+  const auto projection = [&](int vertex) {
+    const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
+    return Eigen::Vector2d(h.head<2>() / h.z());
+  };
+  std::vector<Segment> segments;
+  segments.reserve(face_count / 8);
+  const std::vector<Eigen::Vector3i>& neighbours = index.neighbours();
+  const std::uint8_t* is_positive = positive.data();
+  for (std::size_t i = 0; i < face_count; ++i) {
+    const Eigen::Vector3i& across = neighbours[i];
+    // Positive, with a neighbour that is not (no branch on either alone).
+    if (!(is_positive[i] &
+          ~(is_positive[across[0]] & is_positive[across[1]] & is_positive[across[2]]))) {
+      continue;
+    }
+    const Eigen::Vector3i& f = mesh.faces[i];
+    for (int e = 0; e < 3; ++e) {
+      if (!is_positive[across[e]]) {
+        segments.push_back({projection(f[e]), projection(f[(e + 1) % 3])});
+      }
+    }
+  }
+  if (!every_face) {
+    for (const Segment& segment : segments) {
+      lo = lo.cwiseMin(segment.p).cwiseMin(segment.q);
+      hi = hi.cwiseMax(segment.p).cwiseMax(segment.q);
+    }
+  }
+  count.outline_edges = static_cast<int>(segments.size());
+  return Fill(segments, lo, hi, view);
+}
+
+}  // namespace revolve::reconstruct::outline_internal

@@ -1,0 +1,115 @@
+// The silhouette of a closed, consistently oriented mesh filled from its outline in one view
+// (SilhouetteReprojection's fast path, reconstruct/metrics/reprojection.h), and the index that
+// finds each view's outline without classifying every face. Internal to reconstruct/metrics;
+// the tests and the benchmark compare the culled search with the exhaustive one through it.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "base/rig.h"
+#include "reconstruct/mesh.h"
+#include "reconstruct/metrics/reprojection.h"
+
+namespace revolve::reconstruct::outline_internal {
+
+// An edge of a closed, consistently oriented mesh: a -> b as face `left` runs it, b -> a as
+// face `right` does.
+struct SharedEdge {
+  int a, b, left, right;
+};
+
+// Every edge of `mesh` once (in the order of the faces that run them from the lower vertex
+// index), with its two faces; empty when some edge is not used exactly once in each direction
+// (the mesh is not closed and consistently oriented).
+std::vector<SharedEdge> SharedEdges(const Mesh& mesh);
+
+// Each face's neighbours: [e] is the face that runs its edge corner e -> corner e + 1 backwards.
+// Empty when some edge is not used exactly once in each direction (the mesh is not closed and
+// consistently oriented): SharedEdges(mesh) empty.
+std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh);
+
+// A silhouette within its bounding rectangle: `pixels` (CV_8UC1 0/255, the rectangle's size)
+// are the image's pixels in `box`; none outside is set. An empty box: no pixel set.
+struct BoxedSilhouette {
+  cv::Rect box;
+  cv::Mat pixels;
+};
+
+// The silhouette of a closed mesh from its outline, every edge looked at: the pixels whose
+// centre the outline winds around (its edges between a face of positive projected area and one
+// of another, directed as the positive face runs them: the boundary of the positive faces'
+// union, which is the silhouette, RenderSilhouette's `closed`), and those on the outline. The
+// same pixels as drawing the faces but for pixel centres within rounding of the outline (not on
+// it). Within the rectangle of all projected vertices. nullopt when a vertex is not in front of
+// the camera (the caller draws the faces then). `edges`: SharedEdges(mesh), not empty.
+std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
+                                                       const std::vector<SharedEdge>& edges,
+                                                       const View& view);
+
+// What a view needs of a closed, consistently oriented mesh beyond its vertices: its faces'
+// neighbours and each face's plane (unit normal n and offset n . x, floats) and smallest altitude,
+// from which a view decides most faces' orientation without projecting them (a face's projected
+// area has the sign of (c - x) . n, c the camera's centre, times a sign of the camera's, or of
+// d . n for an orthographic view along d). Built once per mesh, read by any number of views at
+// once.
+class OutlineIndex {
+ public:
+  // Empty (closed() false) when the mesh is not closed and consistently oriented.
+  explicit OutlineIndex(const Mesh& mesh);
+
+  bool closed() const { return !neighbours_.empty(); }
+  const std::vector<Eigen::Vector3i>& neighbours() const { return neighbours_; }
+  // Per face: the unit normal (0 when the face is degenerate), n . (its first vertex), and its
+  // smallest altitude.
+  const std::vector<float>& normal_x() const { return normal_x_; }
+  const std::vector<float>& normal_y() const { return normal_y_; }
+  const std::vector<float>& normal_z() const { return normal_z_; }
+  const std::vector<float>& offset() const { return offset_; }
+  const std::vector<float>& height() const { return height_; }
+  // A sphere around every vertex; finite() false when some vertex is not finite.
+  const Eigen::Vector3d& mesh_centre() const { return mesh_centre_; }
+  double mesh_radius() const { return mesh_radius_; }
+  bool finite() const { return finite_; }
+
+ private:
+  std::vector<Eigen::Vector3i> neighbours_;
+  std::vector<float> normal_x_, normal_y_, normal_z_, offset_, height_;
+  Eigen::Vector3d mesh_centre_ = Eigen::Vector3d::Zero();
+  double mesh_radius_ = 0.0;
+  bool finite_ = false;
+};
+
+// What SilhouetteFromOutline did in one view.
+struct OutlineCounts {
+  int faces = 0;            // faces of the mesh
+  int decided = 0;          // their orientation decided by their planes (not projected)
+  int outline_edges = 0;    // edges between a positive face and another
+  bool every_face = false;  // every vertex projected (not decided in front by the sphere)
+};
+
+// SilhouetteFromEveryEdge's result (the same pixels set, IoUs equal to the bit), with most faces
+// never projected: a face whose camera-facing side is certain in `view` (its plane at least
+// kGrazingMarginRad off the camera's rays to it, and its altitude far above the projection's
+// rounding) has the orientation its plane says; the others are projected and signed with the
+// same floating-point expressions. Only the outline's ends are projected; the box is their
+// rectangle (no pixel outside it is the silhouette's). Where a vertex may lie on or behind the
+// camera plane (not decided by the mesh's sphere), or a vertex is not finite, every vertex is
+// projected and every face signed, as SilhouetteFromEveryEdge does (nullopt likewise).
+// Precondition: index.closed(), built from `mesh`.
+std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const OutlineIndex& index,
+                                                     const View& view,
+                                                     OutlineCounts* counts = nullptr);
+
+// SilhouetteReprojection, its closed meshes' silhouettes from SilhouetteFromEveryEdge
+// (`every_edge`: what it did before the patches, for the benchmark) or SilhouetteFromOutline.
+ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<View>& views,
+                                           const std::vector<cv::Mat>& masks,
+                                           const std::vector<cv::Point>& mask_origins,
+                                           bool every_edge);
+
+}  // namespace revolve::reconstruct::outline_internal

@@ -1,0 +1,140 @@
+// The reprojection metrics (SilhouetteReprojection, reconstruct/metrics/reprojection.h) on a
+// realistic hull: a visual hull at 256^3 of a union of spheres (~380 k triangles, the size of
+// `reconstruct --images`'s model at 256^3), 36 views, on all cores. "every_edge" projects and signs
+// every face in every view (before issue 18's tenth pass); otherwise most faces are signed by their
+// planes and only the rest and the outline's ends are projected. Cameras: the station's pinhole
+// ring (768 x 576, 20 degrees above) or the thesis's orthographic views (1280 x 960, the hull
+// scaled to pixels, as `reconstruct
+// --images` without calibration). REVOLVE_BENCH_MESH=model.ply takes that mesh instead (e.g.
+// `reconstruct --images`'s own model: it is in the thesis's pixels already).
+#include <cstdlib>
+
+#include <benchmark/benchmark.h>
+
+#include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/io/mesh_io.h"
+#include "reconstruct/metrics/outline_internal.h"
+#include "reconstruct/metrics/reprojection.h"
+#include "tests/reconstruct/sphere_scene.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+constexpr int kViews = 36;
+
+struct Scene {
+  Mesh mesh;
+  std::vector<View> views;
+  std::vector<cv::Mat> masks;
+};
+
+std::vector<testing::Sphere> Spheres() {
+  return {{{0.0, 0.0, 45.0}, 42.0},
+          {{0.0, 0.0, 95.0}, 22.0},
+          {{30.0, 20.0, 60.0}, 18.0},
+          {{-28.0, 25.0, 30.0}, 20.0},
+          {{10.0, -35.0, 75.0}, 14.0}};
+}
+
+Mesh HullMesh() {
+  const Rig rig = testing::StationRig(450.0, 20.0, 60.0);
+  VisualHull hull(*VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 120}, 256));
+  for (int k = 0; k < kViews; ++k) {
+    (void)hull.Integrate(testing::SphereMask(rig, 10.0 * k, Spheres()),
+                         testing::ViewOf(rig, 10.0 * k));
+  }
+  HullSurfaceOptions options;
+  options.clip_below_z_mm = 0.0;
+  return hull.ExtractSurface(options);
+}
+
+const Scene& GetScene(bool thesis) {
+  static const Mesh mesh =
+      std::getenv("REVOLVE_BENCH_MESH") ? *ReadPly(std::getenv("REVOLVE_BENCH_MESH")) : HullMesh();
+  static Scene scenes[2];
+  Scene& s = scenes[thesis ? 1 : 0];
+  if (!s.views.empty()) return s;
+  s.mesh = mesh;
+  if (thesis && !std::getenv("REVOLVE_BENCH_MESH")) {
+    for (Eigen::Vector3f& v : s.mesh.vertices) v = 3.5f * v + Eigen::Vector3f(0.0f, 0.0f, 60.0f);
+  }
+  const Rig rig = testing::StationRig(450.0, 20.0, 60.0);
+  for (int k = 0; k < kViews; ++k) {
+    s.views.push_back(thesis ? ThesisView(1280, 960, 10.0 * k) : testing::ViewOf(rig, 10.0 * k));
+    s.masks.push_back(thesis ? RenderSilhouette(s.mesh, s.views.back())
+                             : testing::SphereMask(rig, 10.0 * k, Spheres()));
+  }
+  return s;
+}
+
+// range(0): 1 = thesis views; range(1): 1 = every edge.
+void BM_Reprojection(benchmark::State& state) {
+  const Scene& s = GetScene(state.range(0) != 0);
+  const bool every_edge = state.range(1) != 0;
+  for (auto _ : state) {
+    const ReprojectionStats stats =
+        outline_internal::SilhouetteReprojectionBy(s.mesh, s.views, s.masks, {}, every_edge);
+    benchmark::DoNotOptimize(stats.mean);
+  }
+  double decided = 0;
+  double faces = 0;
+  double outline = 0;
+  const outline_internal::OutlineIndex index(s.mesh);
+  for (const View& view : s.views) {
+    outline_internal::OutlineCounts counts;
+    (void)outline_internal::SilhouetteFromOutline(s.mesh, index, view, &counts);
+    decided += counts.decided;
+    faces += counts.faces;
+    outline += counts.outline_edges;
+  }
+  state.counters["triangles"] = static_cast<double>(s.mesh.faces.size());
+  state.counters["outline_edges"] = outline / kViews;
+  state.counters["decided"] = faces > 0 ? decided / faces : 0.0;
+}
+BENCHMARK(BM_Reprojection)
+    ->Name("Reprojection36Views")
+    ->ArgNames({"thesis", "every_edge"})
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Args({1, 1})
+    ->Args({1, 0})
+    ->Unit(benchmark::kMillisecond);
+
+// One view (range(2)) on the calling thread: the silhouette alone, no IoU.
+void BM_OneView(benchmark::State& state) {
+  const Scene& s = GetScene(state.range(0) != 0);
+  const bool every_edge = state.range(1) != 0;
+  const View& view = s.views[static_cast<std::size_t>(state.range(2))];
+  const outline_internal::OutlineIndex index(s.mesh);
+  const std::vector<outline_internal::SharedEdge> edges = outline_internal::SharedEdges(s.mesh);
+  for (auto _ : state) {
+    const auto silhouette = every_edge
+                                ? outline_internal::SilhouetteFromEveryEdge(s.mesh, edges, view)
+                                : outline_internal::SilhouetteFromOutline(s.mesh, index, view);
+    benchmark::DoNotOptimize(silhouette->pixels.data);
+  }
+}
+BENCHMARK(BM_OneView)
+    ->Name("OneView")
+    ->ArgNames({"thesis", "every_edge", "view"})
+    ->Args({0, 1, 3})
+    ->Args({0, 0, 3})
+    ->Args({1, 1, 3})
+    ->Args({1, 0, 3})
+    ->Unit(benchmark::kMillisecond);
+
+// The index alone (once per mesh, on one thread).
+void BM_OutlineIndex(benchmark::State& state) {
+  const Scene& s = GetScene(false);
+  for (auto _ : state) {
+    const outline_internal::OutlineIndex index(s.mesh);
+    benchmark::DoNotOptimize(index.neighbours().data());
+  }
+}
+BENCHMARK(BM_OutlineIndex)->Name("OutlineIndex")->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace revolve::reconstruct
+
+BENCHMARK_MAIN();
