@@ -1,0 +1,212 @@
+// The reprojection metrics' outline from face planes (reconstruct/metrics/outline_internal.h)
+// gives what projecting and signing every face gives: the same silhouette pixels and the same
+// IoUs, to the bit, on hull surfaces seen from around, above, below and close by, on a mesh with
+// degenerate faces, and where a vertex lies behind the camera; and it decides most faces without
+// projecting them.
+#include <gtest/gtest.h>
+
+#include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/visual_hull.h"
+#include "reconstruct/metrics/metrics.h"
+#include "reconstruct/metrics/outline_internal.h"
+#include "reconstruct/metrics/reprojection.h"
+#include "tests/reconstruct/sphere_scene.h"
+
+namespace revolve::reconstruct {
+namespace {
+
+using outline_internal::BoxedSilhouette;
+using outline_internal::OutlineCounts;
+using outline_internal::OutlineIndex;
+
+std::vector<testing::Sphere> Spheres() {
+  return {{{0.0, 0.0, 40.0}, 35.0}, {{0.0, 0.0, 82.0}, 16.0}, {{28.0, 15.0, 55.0}, 14.0}};
+}
+
+// Hull surfaces of three spheres (concave where they meet): exact crossings at 64^3 and 96^3,
+// midpoints at 40^3.
+std::vector<Mesh> HullMeshes() {
+  const Rig rig = testing::StationRig(450.0, 20.0, 50.0, 320, 240);
+  std::vector<Mesh> meshes;
+  for (const auto& [resolution, sub_voxel] :
+       std::vector<std::pair<int, bool>>{{64, true}, {96, true}, {40, false}}) {
+    VisualHull hull(*VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 120}, resolution));
+    for (int k = 0; k < 12; ++k) {
+      EXPECT_TRUE(hull.Integrate(testing::SphereMask(rig, 30.0 * k, Spheres()),
+                                 testing::ViewOf(rig, 30.0 * k)));
+    }
+    HullSurfaceOptions options;
+    options.sub_voxel = sub_voxel;
+    options.clip_below_z_mm = 0.0;
+    meshes.push_back(hull.ExtractSurface(options));
+  }
+  return meshes;
+}
+
+// Views all around (pinhole, 20 degrees above), from high above, from below the plate, close
+// by (the mesh filling much of a wide view), and orthographic (the thesis's, the mesh scaled to
+// pixels by the caller's choice of size).
+std::vector<View> Views() {
+  std::vector<View> views;
+  const Rig ring = testing::StationRig(450.0, 20.0, 50.0, 320, 240);
+  for (int k = 0; k < 7; ++k) views.push_back(testing::ViewOf(ring, 13.0 + 51.0 * k));
+  views.push_back(testing::ViewOf(testing::StationRig(400.0, 75.0, 50.0, 320, 240), 40.0));
+  views.push_back(testing::ViewOf(testing::StationRig(400.0, -35.0, 50.0, 320, 240), 200.0));
+  views.push_back(testing::ViewOf(testing::StationRig(110.0, 10.0, 50.0, 640, 480, 90.0), 75.0));
+  for (const double angle : {0.0, 35.0, 90.0}) views.push_back(ThesisView(320, 240, angle));
+  return views;
+}
+
+// The silhouette's pixels in a whole image of the view's size.
+cv::Mat Whole(const BoxedSilhouette& silhouette, const View& view) {
+  cv::Mat whole(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
+  if (!silhouette.box.empty()) silhouette.pixels.copyTo(whole(silhouette.box));
+  return whole;
+}
+
+// SilhouetteFromOutline against SilhouetteFromEveryEdge in `view`: the same pixels (or both
+// nullopt). Returns the counts.
+OutlineCounts ExpectSameSilhouette(const Mesh& mesh, const View& view, const std::string& what) {
+  const std::vector<outline_internal::SharedEdge> edges = outline_internal::SharedEdges(mesh);
+  const OutlineIndex index(mesh);
+  EXPECT_TRUE(index.closed()) << what;
+  EXPECT_FALSE(edges.empty()) << what;
+  OutlineCounts counts;
+  const std::optional<BoxedSilhouette> every = SilhouetteFromEveryEdge(mesh, edges, view);
+  const std::optional<BoxedSilhouette> planes = SilhouetteFromOutline(mesh, index, view, &counts);
+  EXPECT_EQ(every.has_value(), planes.has_value()) << what;
+  if (every && planes) {
+    const cv::Mat a = Whole(*every, view);
+    EXPECT_GT(cv::countNonZero(a), 0) << what;
+    EXPECT_EQ(cv::countNonZero(a != Whole(*planes, view)), 0) << what;
+    // The box is the outline's rectangle: within the every-vertex one.
+    EXPECT_EQ(planes->box & every->box, planes->box) << what;
+  }
+  return counts;
+}
+
+TEST(Outline, PlanesGiveTheSilhouetteOfEveryEdgeOnHulls) {
+  const std::vector<View> views = Views();
+  const std::vector<Mesh> meshes = HullMeshes();
+  for (std::size_t m = 0; m < meshes.size(); ++m) {
+    ASSERT_GT(meshes[m].faces.size(), 1000u);
+    int undecided = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      Mesh mesh = meshes[m];
+      if (views[v].IsAffine()) {  // the thesis's pixels: 2 px a millimetre
+        for (Eigen::Vector3f& p : mesh.vertices) p *= 2.0f;
+      }
+      const std::string what = "mesh " + std::to_string(m) + " view " + std::to_string(v);
+      const OutlineCounts counts = ExpectSameSilhouette(mesh, views[v], what);
+      EXPECT_FALSE(counts.every_face) << what;
+      // Most faces are decided by their planes (in the ring's views), the rest (near grazing)
+      // exactly; midpoint surfaces have faces exactly along the thesis's axis-aligned views.
+      EXPECT_GT(counts.decided, (v < 7 ? 0.8 : 0.5) * counts.faces) << what;
+      undecided += counts.faces - counts.decided;
+      EXPECT_GT(counts.outline_edges, 0) << what;
+      // And the pixels are those of drawing every face.
+      const std::optional<BoxedSilhouette> planes =
+          SilhouetteFromOutline(mesh, OutlineIndex(mesh), views[v]);
+      ASSERT_TRUE(planes);
+      EXPECT_EQ(cv::countNonZero(Whole(*planes, views[v]) != RenderSilhouette(mesh, views[v])), 0)
+          << what;
+    }
+    EXPECT_GT(undecided, 0) << m;  // the exact path was taken
+  }
+}
+
+// A face replaced by three around a new vertex placed on a corner or on an edge's midpoint: two
+// of them have no area (coincident or collinear corners); the mesh stays closed and oriented.
+Mesh WithDegenerateFaces(const Mesh& mesh) {
+  Mesh out = mesh;
+  out.faces.clear();
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    if (i % 7 != 0) {
+      out.faces.push_back(f);
+      continue;
+    }
+    const int m = static_cast<int>(out.vertices.size());
+    out.vertices.push_back(i % 2 == 0 ? mesh.vertices[f[0]]
+                                      : 0.5f * (mesh.vertices[f[0]] + mesh.vertices[f[1]]));
+    out.faces.emplace_back(f[0], f[1], m);
+    out.faces.emplace_back(f[1], f[2], m);
+    out.faces.emplace_back(f[2], f[0], m);
+  }
+  return out;
+}
+
+TEST(Outline, PlanesGiveTheSilhouetteOfEveryEdgeWithDegenerateFaces) {
+  const Mesh mesh = WithDegenerateFaces(HullMeshes().front());
+  const MeshStats stats = ComputeStats(mesh);
+  ASSERT_TRUE(stats.closed && stats.oriented);
+  const std::vector<View> views = Views();
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    if (views[v].IsAffine()) continue;
+    const OutlineCounts counts = ExpectSameSilhouette(mesh, views[v], "view " + std::to_string(v));
+    // At least the degenerate faces (a seventh of the originals, two each) are projected.
+    EXPECT_LT(counts.decided, counts.faces - counts.faces / 12) << v;
+  }
+}
+
+// Cameras within the sphere around a long, flat slab: one with every vertex in front (the
+// sphere does not decide it), one with vertices behind it (both nullopt).
+TEST(Outline, CamerasNearOrInsideTheMeshSphere) {
+  VisualHull hull(*VoxelGrid::FromBox({-60, -60, 0}, {60, 60, 8}, 48));
+  const Rig rig = testing::StationRig(450.0, 70.0, 4.0, 320, 240);
+  for (int k = 0; k < 8; ++k) {
+    std::vector<testing::Sphere> spheres;
+    for (int i = -3; i <= 3; ++i) spheres.push_back({{12.0 * i, 0.0, 4.0}, 9.0});
+    ASSERT_TRUE(hull.Integrate(testing::SphereMask(rig, 45.0 * k, spheres),
+                               testing::ViewOf(rig, 45.0 * k)));
+  }
+  HullSurfaceOptions options;
+  options.clip_below_z_mm = 0.0;
+  const Mesh slab = hull.ExtractSurface(options);
+  ASSERT_GT(slab.faces.size(), 100u);
+  // 30 mm from the axis, level, across the slab (in front of every vertex; the sphere around
+  // them, radius ~46 mm, crosses the camera plane) and along it (vertices behind the camera):
+  // decided by projecting every vertex, as SilhouetteFromEveryEdge does.
+  const Rig near = testing::StationRig(30.0, 0.0, 4.0, 320, 240, 120.0);
+  int seen = 0;
+  int behind = 0;
+  for (const double angle : {0.0, 90.0}) {
+    const View view = testing::ViewOf(near, angle);
+    const OutlineCounts counts = ExpectSameSilhouette(slab, view, std::to_string(angle));
+    EXPECT_TRUE(counts.every_face) << angle;
+    const bool drawn = SilhouetteFromOutline(slab, OutlineIndex(slab), view).has_value();
+    seen += drawn;
+    behind += !drawn;
+  }
+  EXPECT_EQ(seen, 1);
+  EXPECT_EQ(behind, 1);
+}
+
+// SilhouetteReprojection's IoUs, to the bit, from the planes and from every face, against masks
+// that differ from the silhouettes (the analytic spheres, shifted 2 px).
+TEST(Outline, ReprojectionIoUsEqualEveryEdgesToTheBit) {
+  const std::vector<View> views = Views();
+  const Mesh mesh = HullMeshes()[1];
+  std::vector<cv::Mat> masks;
+  for (const View& view : views) {
+    cv::Mat mask = RenderSilhouette(mesh, view);
+    cv::Mat shifted = cv::Mat::zeros(mask.size(), CV_8UC1);
+    mask(cv::Rect(0, 0, mask.cols - 2, mask.rows))
+        .copyTo(shifted(cv::Rect(2, 0, mask.cols - 2, mask.rows)));
+    masks.push_back(shifted);
+  }
+  const ReprojectionStats every =
+      outline_internal::SilhouetteReprojectionBy(mesh, views, masks, {}, /*every_edge=*/true);
+  const ReprojectionStats planes = SilhouetteReprojection(mesh, views, masks);
+  ASSERT_EQ(every.iou.size(), views.size());
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    EXPECT_EQ(planes.iou[i], every.iou[i]) << i;
+    EXPECT_LT(planes.iou[i], 1.0) << i;
+    EXPECT_GT(planes.iou[i], 0.5) << i;
+  }
+  EXPECT_EQ(planes.mean, every.mean);
+  EXPECT_EQ(planes.worst_view, every.worst_view);
+}
+
+}  // namespace
+}  // namespace revolve::reconstruct
