@@ -241,36 +241,46 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
   return Fill(segments, lo, hi, view);
 }
 
-std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
+OutgoingEdges::OutgoingEdges(const Mesh& mesh) : first_(mesh.vertices.size() + 1, 0) {
   const std::size_t n = mesh.vertices.size();
-  const std::size_t face_count = mesh.faces.size();
-  // Each vertex's outgoing edges (target, face), grouped by vertex.
-  std::vector<std::uint32_t> first(n + 1, 0);
   for (const Eigen::Vector3i& f : mesh.faces) {
-    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+    for (int e = 0; e < 3; ++e) ++first_[static_cast<std::size_t>(f[e]) + 1];
   }
-  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
-  std::vector<std::pair<int, int>> out(first[n]);
-  {
-    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
-    for (std::size_t face = 0; face < face_count; ++face) {
-      const Eigen::Vector3i& f = mesh.faces[face];
-      for (int e = 0; e < 3; ++e) {
-        out[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
-      }
+  for (std::size_t v = 0; v < n; ++v) first_[v + 1] += first_[v];
+  out_.resize(first_[n]);
+  std::vector<std::uint32_t> next(first_.begin(), first_.end() - 1);
+  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
+    const Eigen::Vector3i& f = mesh.faces[face];
+    for (int e = 0; e < 3; ++e) {
+      out_[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
     }
   }
-  // The face running from -> to; -1 none, -2 more than one.
-  const auto face_of = [&](int from, int to) {
-    int found = -1;
-    for (std::uint32_t k = first[static_cast<std::size_t>(from)];
-         k < first[static_cast<std::size_t>(from) + 1]; ++k) {
-      if (out[k].first != to) continue;
-      if (found >= 0) return -2;
-      found = out[k].second;
-    }
-    return found;
-  };
+}
+
+int OutgoingEdges::Uses(int from, int to) const {
+  int uses = 0;
+  for (std::uint32_t k = first_[static_cast<std::size_t>(from)];
+       k < first_[static_cast<std::size_t>(from) + 1]; ++k) {
+    uses += out_[k].first == to;
+  }
+  return uses;
+}
+
+int OutgoingEdges::FaceOf(int from, int to) const {
+  int found = -1;
+  for (std::uint32_t k = first_[static_cast<std::size_t>(from)];
+       k < first_[static_cast<std::size_t>(from) + 1]; ++k) {
+    if (out_[k].first != to) continue;
+    if (found >= 0) return -2;
+    found = out_[k].second;
+  }
+  return found;
+}
+
+std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
+  const std::size_t face_count = mesh.faces.size();
+  const OutgoingEdges outgoing(mesh);
+  const auto face_of = [&](int from, int to) { return outgoing.FaceOf(from, to); };
   std::vector<Eigen::Vector3i> neighbours(face_count);
   std::atomic<bool> closed = true;
   ParallelChunks(0, face_count, 8192, [&](std::size_t begin, std::size_t end) {

@@ -14,6 +14,7 @@
 #include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/metrics/metrics.h"
 #include "reconstruct/metrics/outline_internal.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "tests/reconstruct/sphere_scene.h"
@@ -133,6 +134,17 @@ void BM_OutlineIndex(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OutlineIndex)->Name("OutlineIndex")->Unit(benchmark::kMillisecond);
+
+// ComputeStats, which `reconstruct --images` runs beside SilhouetteReprojection (its
+// metrics_ms is both).
+void BM_ComputeStats(benchmark::State& state) {
+  const Scene& s = GetScene(false);
+  for (auto _ : state) {
+    const MeshStats stats = ComputeStats(s.mesh);
+    benchmark::DoNotOptimize(stats.volume_mm3);
+  }
+}
+BENCHMARK(BM_ComputeStats)->Name("ComputeStats")->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace revolve::reconstruct
