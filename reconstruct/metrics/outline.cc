@@ -120,6 +120,10 @@ struct PlaneTest {
   double threshold = 0.0;
   double min_height = 0.0;
   bool flip = false;
+  // Orthographic views: bit a set when a row of the projection reads only coordinate a (the
+  // others' factors exactly 0). A face whose corners share that coordinate (bit for bit) then
+  // projects to three equal values in that row: its computed area is exactly 0, not positive.
+  std::uint8_t flat_axes = 0;
 };
 
 PlaneTest PlaneTestOf(const OutlineIndex& index, const View& view) {
@@ -136,6 +140,13 @@ PlaneTest PlaneTestOf(const OutlineIndex& index, const View& view) {
     test.point = direction;
     test.threshold = (margin + 1e-5) * norm;
     test.min_height = kMinHeightOfScale * (o.norm() + r + t.head<2>().norm() / std::sqrt(norm));
+    for (int row = 0; row < 2; ++row) {
+      for (int a = 0; a < 3; ++a) {
+        if (m(row, (a + 1) % 3) == 0.0 && m(row, (a + 2) % 3) == 0.0) {
+          test.flat_axes |= static_cast<std::uint8_t>(1u << a);
+        }
+      }
+    }
     test.usable = true;
     return test;
   }
@@ -323,10 +334,19 @@ OutlineIndex::OutlineIndex(const Mesh& mesh) : neighbours_(FaceNeighbours(mesh))
   for (std::vector<float>* v : {&normal_x_, &normal_y_, &normal_z_, &offset_, &height_}) {
     v->resize(face_count);
   }
+  shared_axes_.resize(face_count);
   ParallelFor(
       0, face_count,
       [&](std::size_t i) {
         const Eigen::Vector3i& f = mesh.faces[i];
+        std::uint8_t shared = 0;
+        for (int axis = 0; axis < 3; ++axis) {
+          const float x = mesh.vertices[f[0]][axis];
+          if (mesh.vertices[f[1]][axis] == x && mesh.vertices[f[2]][axis] == x) {
+            shared |= static_cast<std::uint8_t>(1u << axis);
+          }
+        }
+        shared_axes_[i] = shared;
         const Eigen::Vector3d a = mesh.vertices[f[0]].cast<double>();
         const Eigen::Vector3d b = mesh.vertices[f[1]].cast<double>();
         const Eigen::Vector3d c = mesh.vertices[f[2]].cast<double>();
@@ -351,8 +371,9 @@ OutlineIndex::OutlineIndex(const Mesh& mesh) : neighbours_(FaceNeighbours(mesh))
 
 namespace {
 
-// Each face's orientation in `view` (1 positive, 0 not) as far as its plane decides it (into
-// `positive`); the faces it does not decide, in order, into `undecided`. Returns their count.
+// Each face's orientation in `view` (1 positive, 0 not) as far as its plane decides it, 2 where
+// it does not (into `positive`); the faces it does not decide, in order, into `undecided`.
+// Returns their count.
 std::size_t OrientationsFromPlanes(const OutlineIndex& index, const PlaneTest& test,
                                    std::uint8_t* positive, std::uint32_t* undecided) {
   const std::size_t face_count = index.normal_x().size();
@@ -368,16 +389,24 @@ std::size_t OrientationsFromPlanes(const OutlineIndex& index, const PlaneTest& t
   const auto threshold = static_cast<float>(test.threshold);
   const auto min_height = static_cast<float>(test.min_height);
   const std::uint8_t flip = test.flip ? 1 : 0;
-  std::size_t count = 0;
+  const std::uint8_t* shared_axes = index.shared_axes().data();
+  const std::uint8_t flat_axes = test.flat_axes;
   // In floats: the rounding (~1e-7 of |p| + |x|) is within the threshold's allowance. No branch
-  // on the outcome: the undecided are listed by always writing and advancing when undecided.
+  // on the outcome (decided ? sign : 2), so that the loop runs on vectors.
   for (std::size_t i = 0; i < face_count; ++i) {
     const float s = nx[i] * px + ny[i] * py + nz[i] * pz - offset[i] * k;
+    const auto flat = static_cast<std::uint8_t>((shared_axes[i] & flat_axes) != 0);
     const auto decided =
-        static_cast<std::uint8_t>((std::abs(s) > threshold) & (height[i] > min_height));
-    positive[i] = static_cast<std::uint8_t>((static_cast<std::uint8_t>(s > 0.0f) ^ flip) & decided);
+        static_cast<std::uint8_t>(((std::abs(s) > threshold) & (height[i] > min_height)) | flat);
+    const auto sign =
+        static_cast<std::uint8_t>((static_cast<std::uint8_t>(s > 0.0f) ^ flip) & (flat ^ 1u));
+    positive[i] = static_cast<std::uint8_t>((sign & decided) | ((decided ^ 1u) << 1));
+  }
+  // The undecided listed: always written, the count advanced when undecided.
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < face_count; ++i) {
     undecided[count] = static_cast<std::uint32_t>(i);
-    count += decided ^ 1u;
+    count += positive[i] >> 1;
   }
   return count;
 }

@@ -86,6 +86,8 @@ class OutlineIndex {
   const std::vector<float>& normal_z() const { return normal_z_; }
   const std::vector<float>& offset() const { return offset_; }
   const std::vector<float>& height() const { return height_; }
+  // Per face: bit a set when its three corners share coordinate a, bit for bit.
+  const std::vector<std::uint8_t>& shared_axes() const { return shared_axes_; }
   // A sphere around every vertex; finite() false when some vertex is not finite.
   const Eigen::Vector3d& mesh_centre() const { return mesh_centre_; }
   double mesh_radius() const { return mesh_radius_; }
@@ -94,6 +96,7 @@ class OutlineIndex {
  private:
   std::vector<Eigen::Vector3i> neighbours_;
   std::vector<float> normal_x_, normal_y_, normal_z_, offset_, height_;
+  std::vector<std::uint8_t> shared_axes_;
   Eigen::Vector3d mesh_centre_ = Eigen::Vector3d::Zero();
   double mesh_radius_ = 0.0;
   bool finite_ = false;
