@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
@@ -38,10 +39,7 @@ constexpr double kMinDepthOfDistance = 1e-2;
   return area > 0.0 && std::isfinite(area);
 }
 
-// An outline edge, p -> q as its positive face runs it.
-struct Segment {
-  Eigen::Vector2d p, q;
-};
+using Segment = OutlineSegment;
 
 // The pixels `segments` wind around or run through, within the rectangle [lo, hi] (clipped to
 // the view). Each segment adds its direction to the pixels of each row it crosses (rows v with
@@ -402,38 +400,60 @@ std::size_t OrientationsFromPlanes(const OutlineIndex& index, const PlaneTest& t
         static_cast<std::uint8_t>((static_cast<std::uint8_t>(s > 0.0f) ^ flip) & (flat ^ 1u));
     positive[i] = static_cast<std::uint8_t>((sign & decided) | ((decided ^ 1u) << 1));
   }
-  // The undecided listed: always written, the count advanced when undecided.
+  // The undecided listed (always written, the count advanced when undecided), eight faces at a
+  // time skipped when none is.
   std::size_t count = 0;
-  for (std::size_t i = 0; i < face_count; ++i) {
-    undecided[count] = static_cast<std::uint32_t>(i);
-    count += positive[i] >> 1;
+  const auto list = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      undecided[count] = static_cast<std::uint32_t>(i);
+      count += positive[i] >> 1;
+    }
+  };
+  std::size_t i = 0;
+  for (; i + 8 <= face_count; i += 8) {
+    std::uint64_t eight;
+    std::memcpy(&eight, positive + i, sizeof eight);
+    if (eight & 0x0202020202020202ull) list(i, i + 8);
   }
+  list(i, face_count);
   return count;
 }
 
 }  // namespace
 
 std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const OutlineIndex& index,
-                                                     const View& view, OutlineCounts* counts) {
+                                                     const View& view, OutlineCounts* counts,
+                                                     OutlineScratch* scratch) {
   OutlineCounts local_counts;
   OutlineCounts& count = counts ? *counts : local_counts;
   count = {};
+  OutlineScratch local_scratch;
+  OutlineScratch& work = scratch ? *scratch : local_scratch;
   const std::size_t face_count = mesh.faces.size();
+  const std::size_t vertex_count = mesh.vertices.size();
   count.faces = static_cast<int>(face_count);
   // Each vertex projected once, when first needed.
-  std::unique_ptr<Eigen::Vector2d[]> projected(new Eigen::Vector2d[mesh.vertices.size()]);
-  std::vector<std::uint8_t> done(mesh.vertices.size(), 0);
+  if (work.stamp.size() != vertex_count || ++work.generation == 0) {
+    work.stamp.assign(vertex_count, 0);
+    work.generation = 1;
+  }
+  work.projected.resize(vertex_count);
+  Eigen::Vector2d* projected = work.projected.data();
+  std::uint32_t* stamp = work.stamp.data();
+  const std::uint32_t generation = work.generation;
   const auto project = [&](int vertex) -> const Eigen::Vector2d& {
-    if (!done[vertex]) {
+    if (stamp[vertex] != generation) {
       const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
       projected[vertex] = h.head<2>() / h.z();
-      done[vertex] = 1;
+      stamp[vertex] = generation;
     }
     return projected[vertex];
   };
-  std::vector<std::uint8_t> positive(face_count);  // 1 positive, 0 not
-  // The faces whose planes do not decide them (not initialised: only the listed are read).
-  const std::unique_ptr<std::uint32_t[]> undecided(new std::uint32_t[face_count]);
+  work.positive.resize(face_count);  // 1 positive, 0 not
+  std::uint8_t* positive = work.positive.data();
+  // The faces whose planes do not decide them.
+  work.undecided.resize(face_count);
+  std::uint32_t* undecided = work.undecided.data();
   std::size_t undecided_count = face_count;
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector2d hi = -lo;
@@ -446,14 +466,14 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
       const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[i]);
       if (h.z() <= 0.0) return std::nullopt;
       projected[i] = h.head<2>() / h.z();
-      done[i] = 1;
+      stamp[i] = generation;
       lo = lo.cwiseMin(projected[i]);
       hi = hi.cwiseMax(projected[i]);
     }
     if (!lo.allFinite() || !hi.allFinite()) return std::nullopt;
   }
   if (test.usable) {
-    undecided_count = OrientationsFromPlanes(index, test, positive.data(), undecided.get());
+    undecided_count = OrientationsFromPlanes(index, test, positive, undecided);
   } else {
     for (std::size_t i = 0; i < face_count; ++i) undecided[i] = static_cast<std::uint32_t>(i);
   }
@@ -462,16 +482,11 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     positive[undecided[k]] = Positive(project(f[0]), project(f[1]), project(f[2]));
   }
   count.decided = static_cast<int>(face_count - undecided_count);
-  // The outline: each positive face's edges to a face that is not, as it runs them (projected
-  // again where a vertex is met again: cheaper than looking it up).
-  const auto projection = [&](int vertex) {
-    const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
-    return Eigen::Vector2d(h.head<2>() / h.z());
-  };
-  std::vector<Segment> segments;
-  segments.reserve(face_count / 8);
+  // The outline: each positive face's edges to a face that is not, as it runs them.
+  std::vector<Segment>& segments = work.segments;
+  segments.clear();
   const std::vector<Eigen::Vector3i>& neighbours = index.neighbours();
-  const std::uint8_t* is_positive = positive.data();
+  const std::uint8_t* is_positive = positive;
   for (std::size_t i = 0; i < face_count; ++i) {
     const Eigen::Vector3i& across = neighbours[i];
     // Positive, with a neighbour that is not (no branch on either alone).
@@ -482,7 +497,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     const Eigen::Vector3i& f = mesh.faces[i];
     for (int e = 0; e < 3; ++e) {
       if (!is_positive[across[e]]) {
-        segments.push_back({projection(f[e]), projection(f[(e + 1) % 3])});
+        segments.push_back({project(f[e]), project(f[(e + 1) % 3])});
       }
     }
   }

@@ -110,6 +110,22 @@ struct OutlineCounts {
   bool every_face = false;  // every vertex projected (not decided in front by the sphere)
 };
 
+// An outline edge in a view, p -> q as its positive face runs it.
+struct OutlineSegment {
+  Eigen::Vector2d p, q;
+};
+
+// SilhouetteFromOutline's working memory, kept from view to view by one thread (fewer pages to
+// fault in); any content on entry.
+struct OutlineScratch {
+  std::vector<Eigen::Vector2d> projected;
+  std::vector<std::uint32_t> stamp;  // projected[v] is this view's iff stamp[v] == generation
+  std::uint32_t generation = 0;
+  std::vector<std::uint8_t> positive;
+  std::vector<std::uint32_t> undecided;
+  std::vector<OutlineSegment> segments;
+};
+
 // SilhouetteFromEveryEdge's result (the same pixels set, IoUs equal to the bit), with most faces
 // never projected: a face whose camera-facing side is certain in `view` (its plane at least
 // kGrazingMarginRad off the camera's rays to it, and its altitude far above the projection's
@@ -119,9 +135,11 @@ struct OutlineCounts {
 // camera plane (not decided by the mesh's sphere), or a vertex is not finite, every vertex is
 // projected and every face signed, as SilhouetteFromEveryEdge does (nullopt likewise).
 // Precondition: index.closed(), built from `mesh`.
+// `scratch`: null, or kept by the caller between calls on one thread.
 std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const OutlineIndex& index,
                                                      const View& view,
-                                                     OutlineCounts* counts = nullptr);
+                                                     OutlineCounts* counts = nullptr,
+                                                     OutlineScratch* scratch = nullptr);
 
 // SilhouetteReprojection, its closed meshes' silhouettes from SilhouetteFromEveryEdge
 // (`every_edge`: what it did before the patches, for the benchmark) or SilhouetteFromOutline.

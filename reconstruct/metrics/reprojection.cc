@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <opencv2/core.hpp>
 
 #include "reconstruct/image_set.h"
@@ -166,11 +167,13 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
     index.emplace(mesh);
   }
   const bool closed = every_edge ? !edges.empty() : index->closed();  // else face by face
+  tbb::enumerable_thread_specific<OutlineScratch> scratch;            // each thread's, view to view
   ParallelFor(0, views.size(), [&](std::size_t i) {
     std::optional<BoxedSilhouette> outline;
     if (closed) {
-      outline = every_edge ? SilhouetteFromEveryEdge(mesh, edges, views[i])
-                           : SilhouetteFromOutline(mesh, *index, views[i]);
+      outline = every_edge
+                    ? SilhouetteFromEveryEdge(mesh, edges, views[i])
+                    : SilhouetteFromOutline(mesh, *index, views[i], nullptr, &scratch.local());
     }
     const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     if (!outline) {

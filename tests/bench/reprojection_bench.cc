@@ -109,10 +109,12 @@ void BM_OneView(benchmark::State& state) {
   const View& view = s.views[static_cast<std::size_t>(state.range(2))];
   const outline_internal::OutlineIndex index(s.mesh);
   const std::vector<outline_internal::SharedEdge> edges = outline_internal::SharedEdges(s.mesh);
+  outline_internal::OutlineScratch scratch;
   for (auto _ : state) {
-    const auto silhouette = every_edge
-                                ? outline_internal::SilhouetteFromEveryEdge(s.mesh, edges, view)
-                                : outline_internal::SilhouetteFromOutline(s.mesh, index, view);
+    const auto silhouette =
+        every_edge
+            ? outline_internal::SilhouetteFromEveryEdge(s.mesh, edges, view)
+            : outline_internal::SilhouetteFromOutline(s.mesh, index, view, nullptr, &scratch);
     benchmark::DoNotOptimize(silhouette->pixels.data);
   }
 }
