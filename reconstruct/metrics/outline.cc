@@ -46,7 +46,8 @@ using Segment = OutlineSegment;
 // min(y) <= v < max(y)) from its crossing rightwards; a running sum along the row is the winding
 // number.
 BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo,
-                     const Eigen::Vector2d& hi, const View& view) {
+                     const Eigen::Vector2d& hi, const View& view,
+                     std::vector<std::int32_t>* winding_store) {
   BoxedSilhouette result;
   const double u_first = std::max(0.0, std::ceil(lo.x()));
   const double v_first = std::max(0.0, std::ceil(lo.y()));
@@ -59,9 +60,11 @@ BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d
       cv::Rect(x0, y0, static_cast<int>(u_last) - x0 + 1, static_cast<int>(v_last) - y0 + 1);
   const int width = result.box.width;
   const int height = result.box.height;
-  cv::Mat winding(height, width + 1, CV_32S, cv::Scalar(0));
+  const auto stride = static_cast<std::size_t>(width) + 1;
+  winding_store->assign(stride * static_cast<std::size_t>(height), 0);
+  std::int32_t* winding = winding_store->data();
   std::vector<cv::Point> on_outline;  // in the box's coordinates
-  const auto on = [&](double x, int v) {
+  const auto on = [&](double x, int v) __attribute__((always_inline)) {
     if (x == std::floor(x) && x >= x0 && x < x0 + width) {
       on_outline.emplace_back(static_cast<int>(x) - x0, v);
     }
@@ -89,12 +92,13 @@ BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d
       if (static_cast<double>(v) == bottom) continue;  // rows top <= v < bottom cross
       const double u =
           std::clamp(std::ceil(x), static_cast<double>(x0), static_cast<double>(x0 + width));
-      winding.ptr<int>(v - y0)[static_cast<int>(u) - x0] += direction;
+      winding[static_cast<std::size_t>(v - y0) * stride +
+              static_cast<std::size_t>(static_cast<int>(u) - x0)] += direction;
     }
   }
   result.pixels = cv::Mat(height, width, CV_8UC1);
   for (int v = 0; v < height; ++v) {
-    const int* w = winding.ptr<int>(v);
+    const std::int32_t* w = winding + static_cast<std::size_t>(v) * stride;
     auto* row = result.pixels.ptr<std::uint8_t>(v);
     int sum = 0;
     for (int u = 0; u < width; ++u) {
@@ -247,7 +251,8 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
     segments.push_back(
         {projected[positive[e.left] ? e.a : e.b], projected[positive[e.left] ? e.b : e.a]});
   }
-  return Fill(segments, lo, hi, view);
+  std::vector<std::int32_t> winding;
+  return Fill(segments, lo, hi, view, &winding);
 }
 
 OutgoingEdges::OutgoingEdges(const Mesh& mesh) : first_(mesh.vertices.size() + 1, 0) {
@@ -508,7 +513,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     }
   }
   count.outline_edges = static_cast<int>(segments.size());
-  return Fill(segments, lo, hi, view);
+  return Fill(segments, lo, hi, view, &work.winding);
 }
 
 }  // namespace revolve::reconstruct::outline_internal

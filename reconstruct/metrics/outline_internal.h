@@ -124,6 +124,7 @@ struct OutlineScratch {
   std::vector<std::uint8_t> positive;
   std::vector<std::uint32_t> undecided;
   std::vector<OutlineSegment> segments;
+  std::vector<std::int32_t> winding;
 };
 
 // SilhouetteFromEveryEdge's result (the same pixels set, IoUs equal to the bit), with most faces
