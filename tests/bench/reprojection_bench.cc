@@ -1,12 +1,13 @@
 // The reprojection metrics (SilhouetteReprojection, reconstruct/metrics/reprojection.h) on a
-// realistic hull: a visual hull at 256^3 of a union of spheres (~380 k triangles, the size of
-// `reconstruct --images`'s model at 256^3), 36 views, on all cores. "every_edge" projects and signs
-// every face in every view (before issue 18's tenth pass); otherwise most faces are signed by their
-// planes and only the rest and the outline's ends are projected. Cameras: the station's pinhole
-// ring (768 x 576, 20 degrees above) or the thesis's orthographic views (1280 x 960, the hull
-// scaled to pixels, as `reconstruct
-// --images` without calibration). REVOLVE_BENCH_MESH=model.ply takes that mesh instead (e.g.
-// `reconstruct --images`'s own model: it is in the thesis's pixels already).
+// realistic hull: a visual hull at 256^3 of a union of spheres (~420 k triangles, about the size
+// of `reconstruct --images`'s model at 256^3), 36 views, on all cores. "every_edge" projects and
+// signs every face in every view (main's before issue 18's tenth pass); otherwise most faces are
+// signed by their planes and only the rest and the outline's ends are projected. Cameras: the
+// station's pinhole ring (768 x 576, 20 degrees above) or the thesis's orthographic views
+// (1280 x 960, the hull scaled to pixels, as `reconstruct --images` without calibration).
+// REVOLVE_BENCH_MESH=model.ply takes that mesh instead (e.g. `reconstruct --images`'s own model:
+// it is in the thesis's pixels already).
+#include <cstdio>
 #include <cstdlib>
 
 #include <benchmark/benchmark.h>
@@ -51,8 +52,16 @@ Mesh HullMesh() {
 }
 
 const Scene& GetScene(bool thesis) {
-  static const Mesh mesh =
-      std::getenv("REVOLVE_BENCH_MESH") ? *ReadPly(std::getenv("REVOLVE_BENCH_MESH")) : HullMesh();
+  static const Mesh mesh = [] {
+    const char* path = std::getenv("REVOLVE_BENCH_MESH");
+    if (path == nullptr) return HullMesh();
+    Expected<Mesh> read = ReadPly(path);
+    if (!read) {
+      std::fprintf(stderr, "REVOLVE_BENCH_MESH=%s: %s\n", path, read.error().ToString().c_str());
+      std::exit(2);
+    }
+    return *std::move(read);
+  }();
   static Scene scenes[2];
   Scene& s = scenes[thesis ? 1 : 0];
   if (!s.views.empty()) return s;
