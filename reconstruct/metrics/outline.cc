@@ -24,14 +24,6 @@ constexpr double kMinHeightOfScale = 1e-7;
 // this fraction of its distance from the camera (its projections within ~100 focal lengths).
 constexpr double kMinDepthOfDistance = 1e-2;
 
-// View::Project's expression, inlined: every path projects a vertex with it, so the same vertex
-// is the same point in all.
-[[gnu::always_inline]] inline Eigen::Vector3d Homogeneous(const View& view,
-                                                          const Eigen::Vector3f& vertex) {
-  return view.pixel_from_object.leftCols<3>() * vertex.cast<double>() +
-         view.pixel_from_object.col(3);
-}
-
 // Whether the face p0 p1 p2 has a positive (and finite) projected area.
 [[gnu::always_inline]] inline bool Positive(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1,
                                             const Eigen::Vector2d& p2) {
@@ -435,24 +427,12 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
   OutlineScratch local_scratch;
   OutlineScratch& work = scratch ? *scratch : local_scratch;
   const std::size_t face_count = mesh.faces.size();
-  const std::size_t vertex_count = mesh.vertices.size();
   count.faces = static_cast<int>(face_count);
-  // Each vertex projected once, when first needed.
-  if (work.stamp.size() != vertex_count || ++work.generation == 0) {
-    work.stamp.assign(vertex_count, 0);
-    work.generation = 1;
-  }
-  work.projected.resize(vertex_count);
-  Eigen::Vector2d* projected = work.projected.data();
-  std::uint32_t* stamp = work.stamp.data();
-  const std::uint32_t generation = work.generation;
-  const auto project = [&](int vertex) -> const Eigen::Vector2d& {
-    if (stamp[vertex] != generation) {
-      const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
-      projected[vertex] = h.head<2>() / h.z();
-      stamp[vertex] = generation;
-    }
-    return projected[vertex];
+  // A vertex projected where it is needed, again where it is needed again: cheaper than
+  // keeping it.
+  const auto point = [&](int vertex) {
+    const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
+    return Eigen::Vector2d(h.head<2>() / h.z());
   };
   work.positive.resize(face_count);  // 1 positive, 0 not
   std::uint8_t* positive = work.positive.data();
@@ -470,10 +450,9 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
       const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[i]);
       if (h.z() <= 0.0) return std::nullopt;
-      projected[i] = h.head<2>() / h.z();
-      stamp[i] = generation;
-      lo = lo.cwiseMin(projected[i]);
-      hi = hi.cwiseMax(projected[i]);
+      const Eigen::Vector2d p = h.head<2>() / h.z();
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
     }
     if (!lo.allFinite() || !hi.allFinite()) return std::nullopt;
   }
@@ -484,7 +463,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
   }
   for (std::size_t k = 0; k < undecided_count; ++k) {
     const Eigen::Vector3i& f = mesh.faces[undecided[k]];
-    positive[undecided[k]] = Positive(project(f[0]), project(f[1]), project(f[2]));
+    positive[undecided[k]] = Positive(point(f[0]), point(f[1]), point(f[2]));
   }
   count.decided = static_cast<int>(face_count - undecided_count);
   // The outline: each positive face's edges to a face that is not, as it runs them.
@@ -502,7 +481,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     const Eigen::Vector3i& f = mesh.faces[i];
     for (int e = 0; e < 3; ++e) {
       if (!is_positive[across[e]]) {
-        segments.push_back({project(f[e]), project(f[(e + 1) % 3])});
+        segments.push_back({point(f[e]), point(f[(e + 1) % 3])});
       }
     }
   }

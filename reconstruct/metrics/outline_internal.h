@@ -17,6 +17,22 @@
 
 namespace revolve::reconstruct::outline_internal {
 
+// view.pixel_from_object * (vertex, 1) rounded as Eigen rounds `pixel_from_object.leftCols<3>() *
+// vertex.cast<double>() + pixel_from_object.col(3)` (View::Project's expression, what the
+// metrics used before): the first two rows as ((p0 x + p1 y) + p2 z) + p3, the third as
+// (p0 x + (p1 y + p2 z)) + p3. Written out to be inlined (Eigen's is a call);
+// Outline.HomogeneousIsEigensToTheBit checks it. Every path here projects with it.
+[[gnu::always_inline]] inline Eigen::Vector3d Homogeneous(const View& view,
+                                                          const Eigen::Vector3f& vertex) {
+  const Matrix34d& p = view.pixel_from_object;
+  const auto x = static_cast<double>(vertex.x());
+  const auto y = static_cast<double>(vertex.y());
+  const auto z = static_cast<double>(vertex.z());
+  return {((p(0, 0) * x + p(0, 1) * y) + p(0, 2) * z) + p(0, 3),
+          ((p(1, 0) * x + p(1, 1) * y) + p(1, 2) * z) + p(1, 3),
+          (p(2, 0) * x + (p(2, 1) * y + p(2, 2) * z)) + p(2, 3)};
+}
+
 // An edge of a closed, consistently oriented mesh: a -> b as face `left` runs it, b -> a as
 // face `right` does.
 struct SharedEdge {
@@ -118,9 +134,6 @@ struct OutlineSegment {
 // SilhouetteFromOutline's working memory, kept from view to view by one thread (fewer pages to
 // fault in); any content on entry.
 struct OutlineScratch {
-  std::vector<Eigen::Vector2d> projected;
-  std::vector<std::uint32_t> stamp;  // projected[v] is this view's iff stamp[v] == generation
-  std::uint32_t generation = 0;
   std::vector<std::uint8_t> positive;
   std::vector<std::uint32_t> undecided;
   std::vector<OutlineSegment> segments;

@@ -3,6 +3,10 @@
 // IoUs, to the bit, on hull surfaces seen from around, above, below and close by, on a mesh with
 // degenerate faces, and where a vertex lies behind the camera; and it decides most faces without
 // projecting them.
+#include <cmath>
+#include <cstring>
+#include <random>
+
 #include <gtest/gtest.h>
 
 #include "reconstruct/cameras/views.h"
@@ -83,6 +87,35 @@ OutlineCounts ExpectSameSilhouette(const Mesh& mesh, const View& view, const std
     EXPECT_EQ(planes->box & every->box, planes->box) << what;
   }
   return counts;
+}
+
+// The written-out projection rounds as Eigen's expression does (what the metrics projected
+// with before, and View::Project still does): every vertex of the hulls, in every view, and
+// random points of every magnitude.
+TEST(Outline, HomogeneousIsEigensToTheBit) {
+  std::vector<Eigen::Vector3f> points;
+  for (const Mesh& mesh : HullMeshes()) {
+    points.insert(points.end(), mesh.vertices.begin(), mesh.vertices.end());
+  }
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  for (int i = 0; i < 20000; ++i) {
+    const float scale = std::pow(10.0f, static_cast<float>(i % 9) - 3.0f);
+    points.emplace_back(scale * unit(random), scale * unit(random), scale * unit(random));
+  }
+  std::vector<View> views = Views();
+  View skewed = views.front();
+  skewed.pixel_from_object.row(2) += Eigen::RowVector4d(1e-3, -2e-3, 3e-3, 0.7);
+  views.push_back(skewed);
+  for (const View& view : views) {
+    for (const Eigen::Vector3f& point : points) {
+      const Eigen::Vector3d eigen = view.pixel_from_object.leftCols<3>() * point.cast<double>() +
+                                    view.pixel_from_object.col(3);
+      const Eigen::Vector3d written = outline_internal::Homogeneous(view, point);
+      ASSERT_EQ(std::memcmp(eigen.data(), written.data(), sizeof(double) * 3), 0)
+          << point.transpose() << " " << eigen.transpose() << " " << written.transpose();
+    }
+  }
 }
 
 TEST(Outline, PlanesGiveTheSilhouetteOfEveryEdgeOnHulls) {
