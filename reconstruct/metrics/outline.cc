@@ -308,8 +308,12 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   return neighbours;
 }
 
-OutlineIndex::OutlineIndex(const Mesh& mesh) : neighbours_(FaceNeighbours(mesh)) {
-  if (neighbours_.empty()) return;
+OutlineIndex::OutlineIndex(const Mesh& mesh) {
+  // The neighbours (mostly one thread's work) beside the planes (on the cores left).
+  ParallelInvoke([&] { neighbours_ = FaceNeighbours(mesh); }, [&] { MeasureFaces(mesh); });
+}
+
+void OutlineIndex::MeasureFaces(const Mesh& mesh) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   for (const Eigen::Vector3f& v : mesh.vertices) {

@@ -110,6 +110,9 @@ class OutlineIndex {
   bool finite() const { return finite_; }
 
  private:
+  // The sphere, finite_, and each face's plane, altitude and shared axes.
+  void MeasureFaces(const Mesh& mesh);
+
   std::vector<Eigen::Vector3i> neighbours_;
   std::vector<float> normal_x_, normal_y_, normal_z_, offset_, height_;
   std::vector<std::uint8_t> shared_axes_;
