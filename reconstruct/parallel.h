@@ -10,13 +10,11 @@
 
 #include <cstddef>
 #include <memory>
-#include <utility>
 
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
-#include <tbb/task_group.h>
 
 namespace revolve::reconstruct {
 
@@ -45,23 +43,6 @@ template <typename... Fns>
 void ParallelInvoke(const Fns&... fns) {
   tbb::parallel_invoke(fns...);
 }
-
-// `fn` run on the pool beside the caller's own work (which may use the pool too): joined by
-// Wait() or, at the latest, by the destructor, so that nothing it refers to goes first.
-class BackgroundTask {
- public:
-  template <typename Fn>
-  explicit BackgroundTask(Fn&& fn) {
-    group_.run(std::forward<Fn>(fn));
-  }
-  ~BackgroundTask() { group_.wait(); }
-  BackgroundTask(const BackgroundTask&) = delete;
-  BackgroundTask& operator=(const BackgroundTask&) = delete;
-  void Wait() { group_.wait(); }
-
- private:
-  tbb::task_group group_;
-};
 
 // While it lives, the parallel loops of the process use at most `threads` threads (1: all on the
 // calling thread; values below 1 count as 1). The tests compare a one-thread run with an

@@ -117,7 +117,8 @@ class ImagesRun {
       REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize()));
       return std::unexpected(judged.error());
     }
-    REVOLVE_RETURN_IF_ERROR(WriteMasksWhileModelling());
+    REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
+    REVOLVE_RETURN_IF_ERROR(WriteFilesWhileMeasuring());
     Describe();
     times_["total_ms"] = MsSince(start);
     report_["times_ms"] = times_;
@@ -180,29 +181,31 @@ class ImagesRun {
     return {};
   }
 
-  // The masks and the contact sheet are written on the pool while the model is made, written and
-  // measured (each on all cores, reconstruct/parallel.h): none of these writes what the others
-  // read, and Reconstruct releases its references to the frames as it goes, not the copies
-  // given to WriteMasks. Each step's time is its own (they overlap). A failure to write the
-  // masks is told first.
-  Expected<void> WriteMasksWhileModelling() {
+  // The masks and the contact sheet are written while the model is made, each on all cores
+  // (reconstruct/parallel.h): neither reads what the other writes, and Reconstruct releases its
+  // references to the frames as it goes, not the copies given to WriteMasks. Each step's time is
+  // its own (they overlap).
+  Expected<void> WriteMasksWhileReconstructing() {
     Expected<void> written;
-    Expected<void> modelled;
+    Expected<void> made;
     double masks_ms = 0.0;
-    {
-      const rc::BackgroundTask masks([&] {
-        const Clock::time_point t = Clock::now();
-        written = WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), mask_origins_);
-        masks_ms = MsSince(t);
-      });
-      modelled = [&]() -> Expected<void> {
-        REVOLVE_RETURN_IF_ERROR(Timed("reconstruct_ms", [&] { return Reconstruct(); }));
-        return WriteFilesWhileMeasuring();
-      }();
-    }
+    double reconstruct_ms = 0.0;
+    rc::ParallelInvoke(
+        [&] {
+          const Clock::time_point t = Clock::now();
+          written =
+              WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), mask_origins_);
+          masks_ms = MsSince(t);
+        },
+        [&] {
+          const Clock::time_point t = Clock::now();
+          made = Reconstruct();
+          reconstruct_ms = MsSince(t);
+        });
     times_["masks_ms"] = masks_ms;
+    times_["reconstruct_ms"] = reconstruct_ms;
     if (!written) return written;
-    return modelled;
+    return made;
   }
 
   // Silhouettes: segmented here (photos).
