@@ -110,7 +110,7 @@ void RawRow(RowKind kind, const std::uint8_t* row, int width, std::uint8_t* raw)
     std::memcpy(raw, row, static_cast<std::size_t>(width));
   } else {
     const int whole = width / 8;
-    for (int b = 0; b < whole; ++b) raw[b] = PackEight(row + 8 * b);
+    for (std::ptrdiff_t b = 0; b < whole; ++b) raw[b] = PackEight(row + 8 * b);
     if (whole * 8 < width) {
       std::uint8_t last = 0;
       for (int x = whole * 8; x < width; ++x) {

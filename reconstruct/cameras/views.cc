@@ -146,7 +146,7 @@ MaskMoments Moments(const cv::Mat& mask) {
   MaskMoments moments;
   for (int y = 0; y < mask.rows; ++y) {
     const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
-    // Branch-free, so the row vectorises; a row's sums fit 64 bits at any width.
+    // Branch-free; a row's sums fit 64 bits at any width.
     std::int64_t count = 0;
     std::int64_t sum_x = 0;
     for (int x = 0; x < mask.cols; ++x) {
