@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "reconstruct/io/mesh_io.h"
+#include "tests/support/test_files.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -24,15 +25,6 @@ const std::vector<std::string> kFormats = {"ply", "obj", "stl", "glb", "wrl"};
 
 class ModelWriterTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("revolve_model_writer_") + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // A textured, coloured grid of n x n vertices (2 (n-1)^2 triangles) with a noisy 64x64 atlas:
   // every file but the .mtl is larger than a few kB.
   static Mesh Grid(int n, std::uint8_t tint) {
@@ -73,7 +65,8 @@ class ModelWriterTest : public ::testing::Test {
     return contents;
   }
 
-  fs::path dir_;
+  const test_support::TempDir temp_{"revolve_model_writer"};
+  const fs::path dir_ = temp_.path();
 };
 
 // Copies `finished` into `*mesh` field by field, as TextureMesh makes it, telling `writer` of each
