@@ -40,20 +40,15 @@ Eigen::Vector3d Vertex(const Mesh& mesh, int index) { return mesh.vertices[index
 
 }  // namespace
 
-MeshStats ComputeStats(const Mesh& mesh) {
+MeshStats ComputeMeasures(const Mesh& mesh) {
   MeshStats stats;
   stats.vertex_count = static_cast<std::int64_t>(mesh.vertices.size());
   stats.triangle_count = static_cast<std::int64_t>(mesh.faces.size());
   if (mesh.faces.empty()) {
     return stats;
   }
-
   stats.bbox_min_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   stats.bbox_max_mm = -stats.bbox_min_mm;
-  // Each vertex's outgoing directed edges (their targets), grouped by vertex: counted here,
-  // placed below (a counting sort).
-  const std::size_t n = mesh.vertices.size();
-  std::vector<std::size_t> first(n + 1, 0);
   double volume6 = 0.0;
   for (const Eigen::Vector3i& f : mesh.faces) {
     const Eigen::Vector3d a = Vertex(mesh, f[0]);
@@ -68,9 +63,21 @@ MeshStats ComputeStats(const Mesh& mesh) {
     if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
       ++stats.degenerate_triangles;
     }
-    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
   }
   stats.volume_mm3 = volume6 / 6.0;
+  return stats;
+}
+
+void CheckEdges(const Mesh& mesh, MeshStats* stats) {
+  stats->closed = false;
+  stats->oriented = false;
+  if (mesh.faces.empty()) return;
+  // Each vertex's outgoing directed edges (their targets), grouped by vertex (a counting sort).
+  const std::size_t n = mesh.vertices.size();
+  std::vector<std::size_t> first(n + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+  }
   for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
   std::vector<int> targets(first[n]);
   {
@@ -104,8 +111,13 @@ MeshStats ComputeStats(const Mesh& mesh) {
     if (!chunk_oriented) oriented.store(false, std::memory_order_relaxed);
     if (!chunk_closed) closed.store(false, std::memory_order_relaxed);
   });
-  stats.oriented = oriented.load();
-  stats.closed = closed.load();
+  stats->oriented = oriented.load();
+  stats->closed = closed.load();
+}
+
+MeshStats ComputeStats(const Mesh& mesh) {
+  MeshStats stats = ComputeMeasures(mesh);
+  CheckEdges(mesh, &stats);
   return stats;
 }
 

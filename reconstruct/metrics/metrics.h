@@ -28,8 +28,15 @@ struct MeshStats {
 };
 
 // Stats of `mesh`; an empty mesh is neither closed nor oriented. Precondition: face indices
-// are valid vertex indices.
+// are valid vertex indices. ComputeMeasures then CheckEdges.
 MeshStats ComputeStats(const Mesh& mesh);
+
+// ComputeStats's counts, sizes, area and volume; `closed` and `oriented` false (not checked).
+MeshStats ComputeMeasures(const Mesh& mesh);
+
+// ComputeStats's `closed` and `oriented` into *stats (its other fields untouched). A caller that
+// knows them already (ReprojectionStats::closed_and_oriented) sets them instead.
+void CheckEdges(const Mesh& mesh, MeshStats* stats);
 
 // Unsigned distance (mm) from a point to the true surface.
 using DistanceToTruth = std::function<double(const Eigen::Vector3d&)>;

@@ -1,9 +1,12 @@
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
+
+#include <tbb/enumerable_thread_specific.h>
 
 #include "reconstruct/metrics/outline_internal.h"
 #include "reconstruct/parallel.h"
@@ -32,6 +35,15 @@ constexpr double kMinDepthOfDistance = 1e-2;
 }
 
 using Segment = OutlineSegment;
+
+// A vertex as `view` sees it: h / h.z, h = Homogeneous(view, vertex). An affine view's h.z is
+// exactly 1 (the thesis's), and the division by it, exact, is left out.
+[[gnu::always_inline]] inline Eigen::Vector2d Projected(const View& view,
+                                                        const Eigen::Vector3f& vertex) {
+  const Eigen::Vector3d h = Homogeneous(view, vertex);
+  if (h.z() == 1.0) return h.head<2>();
+  return h.head<2>() / h.z();
+}
 
 // The pixels `segments` wind around or run through, within the rectangle [lo, hi] (clipped to
 // the view). Each segment adds its direction to the pixels of each row it crosses (rows v with
@@ -289,6 +301,8 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   const auto face_of = [&](int from, int to) { return outgoing.FaceOf(from, to); };
   std::vector<Eigen::Vector3i> neighbours(face_count);
   std::atomic<bool> closed = true;
+  // Every directed edge's reverse run by exactly one face is enough: a directed edge run twice
+  // is the reverse of an edge (itself run, else that edge has no reverse) that then finds two.
   ParallelChunks(0, face_count, 8192, [&](std::size_t begin, std::size_t end) {
     for (std::size_t face = begin; face < end; ++face) {
       const Eigen::Vector3i& f = mesh.faces[face];
@@ -296,7 +310,7 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
         const int a = f[e];
         const int b = f[(e + 1) % 3];
         const int across = a == b ? -1 : face_of(b, a);
-        if (across < 0 || face_of(a, b) != static_cast<int>(face)) {
+        if (across < 0) {
           closed.store(false, std::memory_order_relaxed);
           return;
         }
@@ -434,10 +448,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
   count.faces = static_cast<int>(face_count);
   // A vertex projected where it is needed, again where it is needed again: cheaper than
   // keeping it.
-  const auto point = [&](int vertex) {
-    const Eigen::Vector3d h = Homogeneous(view, mesh.vertices[vertex]);
-    return Eigen::Vector2d(h.head<2>() / h.z());
-  };
+  const auto point = [&](int vertex) { return Projected(view, mesh.vertices[vertex]); };
   work.positive.resize(face_count);  // 1 positive, 0 not
   std::uint8_t* positive = work.positive.data();
   // The faces whose planes do not decide them.
@@ -497,6 +508,155 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
   }
   count.outline_edges = static_cast<int>(segments.size());
   return Fill(segments, lo, hi, view, &work.winding);
+}
+
+namespace {
+
+// The views of a batch, one bit each in a word per face.
+using ViewBits = std::uint32_t;
+constexpr std::size_t kBatchViews = 32;
+// Faces per chunk of a batch: their planes (~22 bytes a face) stay in the core's cache from one
+// view to the next.
+constexpr std::size_t kBatchFaces = 8192;
+// A batch names an outline edge face * 3 + corner in 32 bits.
+constexpr std::size_t kMaxBatchFaces = std::size_t{1} << 30;
+
+// For the faces [begin, end): bit `bit` of positive[i - begin] set when face i's plane decides it
+// positive in the view of `test`, of undecided[i - begin] when its plane does not decide it.
+// OrientationsFromPlanes's expressions, rounded the same way; one view, every face in a row.
+void PlaneBits(const OutlineIndex& index, const PlaneTest& test, std::size_t begin, std::size_t end,
+               ViewBits bit, ViewBits* positive, ViewBits* undecided) {
+  const float* nx = index.normal_x().data();
+  const float* ny = index.normal_y().data();
+  const float* nz = index.normal_z().data();
+  const float* offset = index.offset().data();
+  const float* height = index.height().data();
+  const std::uint8_t* shared_axes = index.shared_axes().data();
+  const auto px = static_cast<float>(test.point.x());
+  const auto py = static_cast<float>(test.point.y());
+  const auto pz = static_cast<float>(test.point.z());
+  const auto k = static_cast<float>(test.k);
+  const auto threshold = static_cast<float>(test.threshold);
+  const auto min_height = static_cast<float>(test.min_height);
+  const ViewBits flip = test.flip ? ~ViewBits{0} : 0;
+  const std::uint8_t flat_axes = test.flat_axes;
+  // All-ones or zero words, no branch: the loop runs on vectors.
+  for (std::size_t i = begin; i < end; ++i) {
+    const float s = nx[i] * px + ny[i] * py + nz[i] * pz - offset[i] * k;
+    const ViewBits flat = (shared_axes[i] & flat_axes) != 0 ? ~ViewBits{0} : 0;
+    const ViewBits decided =
+        ((std::abs(s) > threshold) & (height[i] > min_height) ? ~ViewBits{0} : 0) | flat;
+    const ViewBits sign = ((s > 0.0f ? ~ViewBits{0} : 0) ^ flip) & ~flat;
+    positive[i - begin] |= sign & decided & bit;
+    undecided[i - begin] |= ~decided & bit;
+  }
+}
+
+// SilhouettesFromOutline for the views `batch` (at most kBatchViews; each decided in front by
+// the mesh's sphere, its plane test `tests[view]` usable): every face signed in every view of
+// the batch chunk by chunk (its plane read once for them all), then the outline edges of every
+// view found in one pass over the faces and their neighbours, then each view's outline filled.
+// Each view's outline edges in SilhouetteFromOutline's order (faces, then corners).
+void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::vector<View>& views,
+                        const std::vector<std::size_t>& batch, const std::vector<PlaneTest>& tests,
+                        const SilhouetteSink& use) {
+  const std::size_t face_count = mesh.faces.size();
+  const std::size_t view_count = batch.size();
+  const std::size_t chunk_count = (face_count + kBatchFaces - 1) / kBatchFaces;
+  std::vector<ViewBits> positive(face_count, 0);
+  tbb::enumerable_thread_specific<std::vector<ViewBits>> undecided_store;
+  ParallelFor(0, chunk_count, [&](std::size_t c) {
+    const std::size_t begin = c * kBatchFaces;
+    const std::size_t end = std::min(face_count, begin + kBatchFaces);
+    std::vector<ViewBits>& undecided = undecided_store.local();
+    undecided.assign(end - begin, 0);
+    ViewBits* chunk = positive.data() + begin;
+    for (std::size_t b = 0; b < view_count; ++b) {
+      PlaneBits(index, tests[batch[b]], begin, end, ViewBits{1} << b, chunk, undecided.data());
+    }
+    // The faces a plane leaves undecided, projected in that view.
+    for (std::size_t j = 0; j < end - begin; ++j) {
+      for (ViewBits left = undecided[j]; left != 0; left &= left - 1) {
+        const int b = std::countr_zero(left);
+        const View& view = views[batch[static_cast<std::size_t>(b)]];
+        const Eigen::Vector3i& f = mesh.faces[begin + j];
+        if (Positive(Projected(view, mesh.vertices[f[0]]), Projected(view, mesh.vertices[f[1]]),
+                     Projected(view, mesh.vertices[f[2]]))) {
+          chunk[j] |= ViewBits{1} << b;
+        }
+      }
+    }
+  });
+  // Per chunk and view ([c * view_count + b]): the outline edges, face * 3 + corner.
+  std::vector<std::vector<std::uint32_t>> outline(chunk_count * view_count);
+  const std::vector<Eigen::Vector3i>& neighbours = index.neighbours();
+  ParallelFor(0, chunk_count, [&](std::size_t c) {
+    const std::size_t begin = c * kBatchFaces;
+    const std::size_t end = std::min(face_count, begin + kBatchFaces);
+    for (std::size_t i = begin; i < end; ++i) {
+      const Eigen::Vector3i& across = neighbours[i];
+      const ViewBits a = positive[static_cast<std::size_t>(across[0])];
+      const ViewBits b = positive[static_cast<std::size_t>(across[1])];
+      const ViewBits d = positive[static_cast<std::size_t>(across[2])];
+      // The views where face i is positive with a neighbour that is not.
+      for (ViewBits views_out = positive[i] & ~(a & b & d); views_out != 0;
+           views_out &= views_out - 1) {
+        const int v = std::countr_zero(views_out);
+        std::vector<std::uint32_t>& edges = outline[c * view_count + static_cast<std::size_t>(v)];
+        const auto face = static_cast<std::uint32_t>(3 * i);
+        if (!((a >> v) & 1u)) edges.push_back(face);
+        if (!((b >> v) & 1u)) edges.push_back(face + 1);
+        if (!((d >> v) & 1u)) edges.push_back(face + 2);
+      }
+    }
+  });
+  positive = {};
+  tbb::enumerable_thread_specific<OutlineScratch> scratch;
+  ParallelFor(0, view_count, [&](std::size_t b) {
+    const View& view = views[batch[b]];
+    OutlineScratch& work = scratch.local();
+    std::vector<Segment>& segments = work.segments;
+    segments.clear();
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d hi = -lo;
+    for (std::size_t c = 0; c < chunk_count; ++c) {
+      for (const std::uint32_t edge : outline[c * view_count + b]) {
+        const Eigen::Vector3i& f = mesh.faces[edge / 3];
+        const int e = static_cast<int>(edge % 3);
+        const Segment segment{Projected(view, mesh.vertices[f[e]]),
+                              Projected(view, mesh.vertices[f[(e + 1) % 3]])};
+        lo = lo.cwiseMin(segment.p).cwiseMin(segment.q);
+        hi = hi.cwiseMax(segment.p).cwiseMax(segment.q);
+        segments.push_back(segment);
+      }
+    }
+    use(batch[b], Fill(segments, lo, hi, view, &work.winding));
+  });
+}
+
+}  // namespace
+
+void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
+                            const std::vector<View>& views, const SilhouetteSink& use) {
+  std::vector<PlaneTest> tests(views.size());
+  std::vector<std::size_t> alone;
+  std::vector<std::vector<std::size_t>> batches;
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    if (EveryVertexInFront(index, views[i])) tests[i] = PlaneTestOf(index, views[i]);
+    if (!tests[i].usable || mesh.faces.size() > kMaxBatchFaces) {
+      alone.push_back(i);
+      continue;
+    }
+    if (batches.empty() || batches.back().size() == kBatchViews) batches.emplace_back();
+    batches.back().push_back(i);
+  }
+  for (const std::vector<std::size_t>& batch : batches) {
+    SilhouettesOfBatch(mesh, index, views, batch, tests, use);
+  }
+  tbb::enumerable_thread_specific<OutlineScratch> scratch;
+  ParallelFor(0, alone.size(), [&](std::size_t k) {
+    use(alone[k], SilhouetteFromOutline(mesh, index, views[alone[k]], nullptr, &scratch.local()));
+  });
 }
 
 }  // namespace revolve::reconstruct::outline_internal

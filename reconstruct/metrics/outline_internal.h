@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -158,11 +159,28 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
                                                      OutlineCounts* counts = nullptr,
                                                      OutlineScratch* scratch = nullptr);
 
-// SilhouetteReprojection, its closed meshes' silhouettes from SilhouetteFromEveryEdge
-// (`every_edge`: what it did before the patches, for the benchmark) or SilhouetteFromOutline.
+// Receives view i's silhouette (nullopt: as SilhouetteFromOutline's).
+using SilhouetteSink = std::function<void(std::size_t i, std::optional<BoxedSilhouette>)>;
+
+// SilhouetteFromOutline(mesh, index, views[i]) for every view (the same pixels and box), on all
+// cores: `use` is called once per view, from any thread, for several views at once. The views
+// whose faces the planes decide (every vertex in front, decided by the mesh's sphere) are taken
+// 32 at a time: each face is signed in all of them with its plane read once, and the outlines
+// of all of them come from one pass over the faces and their neighbours (one bit per view),
+// instead of one pass per view. The other views one by one. Precondition: index.closed(), built
+// from `mesh`.
+void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
+                            const std::vector<View>& views, const SilhouetteSink& use);
+
+// How SilhouetteReprojectionBy finds a closed mesh's silhouettes: SilhouetteFromEveryEdge (what
+// it did before the outline index, for the benchmark), SilhouetteFromOutline one view at a time,
+// or SilhouettesFromOutline (SilhouetteReprojection's).
+enum class OutlineSearch { kEveryEdge, kEachView, kBatched };
+
+// SilhouetteReprojection, its closed meshes' silhouettes found by `search`.
 ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<View>& views,
                                            const std::vector<cv::Mat>& masks,
                                            const std::vector<cv::Point>& mask_origins,
-                                           bool every_edge);
+                                           OutlineSearch search);
 
 }  // namespace revolve::reconstruct::outline_internal

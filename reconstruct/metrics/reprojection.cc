@@ -155,10 +155,11 @@ namespace outline_internal {
 ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<View>& views,
                                            const std::vector<cv::Mat>& masks,
                                            const std::vector<cv::Point>& mask_origins,
-                                           bool every_edge) {
+                                           OutlineSearch search) {
   ReprojectionStats stats;
   // The views on all cores, each IoU in its slot; the sum and the worst in view order.
   stats.iou.resize(views.size());
+  const bool every_edge = search == OutlineSearch::kEveryEdge;
   std::optional<OutlineIndex> index;
   std::vector<SharedEdge> edges;  // every_edge
   if (every_edge) {
@@ -167,14 +168,9 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
     index.emplace(mesh);
   }
   const bool closed = every_edge ? !edges.empty() : index->closed();  // else face by face
-  tbb::enumerable_thread_specific<OutlineScratch> scratch;            // each thread's, view to view
-  ParallelFor(0, views.size(), [&](std::size_t i) {
-    std::optional<BoxedSilhouette> outline;
-    if (closed) {
-      outline = every_edge
-                    ? SilhouetteFromEveryEdge(mesh, edges, views[i])
-                    : SilhouetteFromOutline(mesh, *index, views[i], nullptr, &scratch.local());
-    }
+  stats.closed_and_oriented = closed;
+  // View i's IoU from its silhouette (nullopt: drawn face by face).
+  const auto measure = [&](std::size_t i, const std::optional<BoxedSilhouette>& outline) {
     const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     if (!outline) {
       const cv::Mat rendered = RenderSilhouette(mesh, views[i], closed);
@@ -199,7 +195,23 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
     }
     const std::int64_t either = silhouette + cv::countNonZero(masks[i]) - both;
     stats.iou[i] = either == 0 ? 1.0 : static_cast<double>(both) / static_cast<double>(either);
-  });
+  };
+  if (closed && search == OutlineSearch::kBatched) {
+    SilhouettesFromOutline(
+        mesh, *index, views,
+        [&](std::size_t i, std::optional<BoxedSilhouette> outline) { measure(i, outline); });
+  } else {
+    tbb::enumerable_thread_specific<OutlineScratch> scratch;  // each thread's, view to view
+    ParallelFor(0, views.size(), [&](std::size_t i) {
+      std::optional<BoxedSilhouette> outline;
+      if (closed) {
+        outline = every_edge
+                      ? SilhouetteFromEveryEdge(mesh, edges, views[i])
+                      : SilhouetteFromOutline(mesh, *index, views[i], nullptr, &scratch.local());
+      }
+      measure(i, outline);
+    });
+  }
   double sum = 0.0;
   for (std::size_t i = 0; i < views.size(); ++i) {
     const double iou = stats.iou[i];
@@ -219,7 +231,7 @@ ReprojectionStats SilhouetteReprojection(const Mesh& mesh, const std::vector<Vie
                                          const std::vector<cv::Mat>& masks,
                                          const std::vector<cv::Point>& mask_origins) {
   return outline_internal::SilhouetteReprojectionBy(mesh, views, masks, mask_origins,
-                                                    /*every_edge=*/false);
+                                                    outline_internal::OutlineSearch::kBatched);
 }
 
 InsideTest MeshInsideTest(const Mesh& mesh) {

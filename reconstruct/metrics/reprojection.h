@@ -35,6 +35,9 @@ struct ReprojectionStats {
   double mean = 0.0;
   double min = 0.0;
   int worst_view = -1;
+  // The mesh was found closed and consistently oriented (every edge run once each way: MeshStats'
+  // closed and oriented both true); false when it is not.
+  bool closed_and_oriented = false;
 };
 
 // RenderSilhouette + MaskIoU for every view, on all cores. The silhouette of a closed,

@@ -472,10 +472,16 @@ class ImagesRun {
   }
 
   void Measure() {
-    // Independent, each on all cores.
+    // Independent, each on all cores. The reprojection finds every edge's faces: whether the
+    // mesh is closed and oriented is known then, not checked twice.
     rc::ParallelInvoke(
-        [&] { stats_ = rc::ComputeStats(mesh_); },
+        [&] { stats_ = rc::ComputeMeasures(mesh_); },
         [&] { reprojection_ = rc::SilhouetteReprojection(mesh_, views_, masks_, mask_origins_); });
+    if (reprojection_.closed_and_oriented) {
+      stats_.closed = stats_.oriented = true;
+    } else {
+      rc::CheckEdges(mesh_, &stats_);
+    }
   }
 
   // report.json's model and reprojection sections.

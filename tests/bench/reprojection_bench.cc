@@ -1,8 +1,9 @@
 // The reprojection metrics (SilhouetteReprojection, reconstruct/metrics/reprojection.h) on a
 // realistic hull: a visual hull at 256^3 of a union of spheres (~420 k triangles, about the size
-// of `reconstruct --images`'s model at 256^3), 36 views, on all cores. "every_edge" projects and
+// of `reconstruct --images`'s model at 256^3), 36 views, on all cores. "search:0" projects and
 // signs every face in every view (main's before issue 18's tenth pass); otherwise most faces are
-// signed by their planes and only the rest and the outline's ends are projected. Cameras: the
+// signed by their planes and only the rest and the outline's ends are projected, one view at a
+// time ("search:1", the tenth pass) or 32 views per pass over the faces ("search:2"). Cameras: the
 // station's pinhole ring (768 x 576, 20 degrees above) or the thesis's orthographic views
 // (1280 x 960, the hull scaled to pixels, as `reconstruct --images` without calibration).
 // REVOLVE_BENCH_MESH=model.ply takes that mesh instead (e.g. `reconstruct --images`'s own model:
@@ -78,13 +79,14 @@ const Scene& GetScene(bool thesis) {
   return s;
 }
 
-// range(0): 1 = thesis views; range(1): 1 = every edge.
+// range(0): 1 = thesis views; range(1): the search, 0 every edge, 1 one view at a time, 2 all
+// views at once (SilhouetteReprojection's).
 void BM_Reprojection(benchmark::State& state) {
   const Scene& s = GetScene(state.range(0) != 0);
-  const bool every_edge = state.range(1) != 0;
+  const auto search = static_cast<outline_internal::OutlineSearch>(state.range(1));
   for (auto _ : state) {
     const ReprojectionStats stats =
-        outline_internal::SilhouetteReprojectionBy(s.mesh, s.views, s.masks, {}, every_edge);
+        outline_internal::SilhouetteReprojectionBy(s.mesh, s.views, s.masks, {}, search);
     benchmark::DoNotOptimize(stats.mean);
   }
   double decided = 0;
@@ -104,11 +106,13 @@ void BM_Reprojection(benchmark::State& state) {
 }
 BENCHMARK(BM_Reprojection)
     ->Name("Reprojection36Views")
-    ->ArgNames({"thesis", "every_edge"})
-    ->Args({0, 1})
+    ->ArgNames({"thesis", "search"})
     ->Args({0, 0})
-    ->Args({1, 1})
+    ->Args({0, 1})
+    ->Args({0, 2})
     ->Args({1, 0})
+    ->Args({1, 1})
+    ->Args({1, 2})
     ->Unit(benchmark::kMillisecond);
 
 // One view (range(2)) on the calling thread: the silhouette alone, no IoU.

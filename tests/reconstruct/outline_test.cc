@@ -5,6 +5,7 @@
 // projecting them.
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -215,6 +216,128 @@ TEST(Outline, CamerasNearOrInsideTheMeshSphere) {
   EXPECT_EQ(behind, 1);
 }
 
+// All views at once give what each view alone gives: the same box and pixels, or both nullopt,
+// each view told once: 41 pinhole and orthographic views (two batches, the first full) and two
+// that are not batched (a camera inside the mesh: nullopt; one whose sphere test fails but sees
+// every vertex), on hulls with exact crossings and with midpoints.
+TEST(Outline, AllViewsAtOnceGiveEachViewsSilhouette) {
+  const Rig ring = testing::StationRig(450.0, 20.0, 50.0, 320, 240);
+  std::vector<View> views;
+  for (int k = 0; k < 36; ++k) views.push_back(testing::ViewOf(ring, 10.0 * k));
+  for (const double angle : {0.0, 35.0, 90.0, 180.0}) views.push_back(ThesisView(320, 240, angle));
+  views.push_back(testing::ViewOf(testing::StationRig(400.0, 75.0, 50.0, 320, 240), 40.0));
+  views.push_back(testing::ViewOf(testing::StationRig(20.0, 0.0, 40.0, 320, 240, 120.0), 0.0));
+  views.push_back(testing::ViewOf(testing::StationRig(40.0, 0.0, 40.0, 320, 240, 120.0), 30.0));
+  for (const Mesh& mesh : HullMeshes()) {
+    const OutlineIndex index(mesh);
+    ASSERT_TRUE(index.closed());
+    std::vector<std::optional<BoxedSilhouette>> together(views.size());
+    std::vector<int> told(views.size(), 0);
+    std::mutex mutex;
+    outline_internal::SilhouettesFromOutline(
+        mesh, index, views, [&](std::size_t i, std::optional<BoxedSilhouette> silhouette) {
+          const std::lock_guard<std::mutex> lock(mutex);
+          ++told[i];
+          together[i] = std::move(silhouette);
+        });
+    int drawn = 0;
+    int every_face = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      OutlineCounts counts;
+      const std::optional<BoxedSilhouette> alone =
+          SilhouetteFromOutline(mesh, index, views[v], &counts);
+      every_face += counts.every_face;
+      EXPECT_EQ(told[v], 1) << v;
+      ASSERT_EQ(alone.has_value(), together[v].has_value()) << v;
+      if (!alone) continue;
+      ++drawn;
+      EXPECT_EQ(alone->box, together[v]->box) << v;
+      ASSERT_EQ(alone->pixels.size(), together[v]->pixels.size()) << v;
+      EXPECT_EQ(cv::countNonZero(alone->pixels != together[v]->pixels), 0) << v;
+      EXPECT_GT(cv::countNonZero(alone->pixels), 0) << v;
+    }
+    EXPECT_EQ(drawn, static_cast<int>(views.size()) - 1);  // the camera inside the mesh
+    EXPECT_EQ(every_face, 2);
+  }
+}
+
+// A tetrahedron's four faces, outward, on vertices first .. first + 3.
+void AddTetrahedron(Mesh* mesh, const Eigen::Vector3f& corner) {
+  const int first = static_cast<int>(mesh->vertices.size());
+  for (const Eigen::Vector3f& offset : {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(10, 0, 0),
+                                        Eigen::Vector3f(0, 10, 0), Eigen::Vector3f(0, 0, 10)}) {
+    mesh->vertices.push_back(corner + offset);
+  }
+  for (const Eigen::Vector3i& f : {Eigen::Vector3i(0, 2, 1), Eigen::Vector3i(0, 1, 3),
+                                   Eigen::Vector3i(0, 3, 2), Eigen::Vector3i(1, 2, 3)}) {
+    mesh->faces.push_back(f + Eigen::Vector3i::Constant(first));
+  }
+}
+
+// The outline index (what SilhouetteReprojection reports as closed_and_oriented, and what
+// `reconstruct --images` then takes instead of checking the edges again) finds a mesh closed and
+// oriented exactly when ComputeStats does: on flawless meshes, a face turned over, one removed,
+// one doubled, a face with a repeated corner, and two solids sharing an edge (each direction run
+// twice).
+TEST(Outline, IndexFindsClosedAndOrientedAsComputeStatsDoes) {
+  Mesh tetrahedron;
+  AddTetrahedron(&tetrahedron, Eigen::Vector3f(0, 0, 30));
+  std::vector<std::pair<std::string, Mesh>> meshes = {{"tetrahedron", tetrahedron},
+                                                      {"hull", HullMeshes().back()}};
+  Mesh two = tetrahedron;
+  AddTetrahedron(&two, Eigen::Vector3f(40, 0, 30));
+  meshes.emplace_back("two apart", two);
+  for (const auto& [name, base] : std::vector<std::pair<std::string, Mesh>>(meshes)) {
+    Mesh turned = base;
+    std::swap(turned.faces[1][1], turned.faces[1][2]);
+    meshes.emplace_back(name + " turned", turned);
+    Mesh open = base;
+    open.faces.pop_back();
+    meshes.emplace_back(name + " open", open);
+    Mesh doubled = base;
+    doubled.faces.push_back(doubled.faces[0]);
+    meshes.emplace_back(name + " doubled", doubled);
+    Mesh repeated = base;
+    repeated.faces.emplace_back(0, 0, 1);
+    repeated.faces.emplace_back(0, 1, 0);
+    meshes.emplace_back(name + " repeated corner", repeated);
+  }
+  // The second tetrahedron's edge 4-5 laid on the first's 0-1 (the same two vertices).
+  Mesh sharing = tetrahedron;
+  AddTetrahedron(&sharing, Eigen::Vector3f(0, 0, 30));
+  for (std::size_t f = 4; f < 8; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (sharing.faces[f][k] == 4) sharing.faces[f][k] = 0;
+      if (sharing.faces[f][k] == 5) sharing.faces[f][k] = 1;
+    }
+  }
+  meshes.emplace_back("sharing an edge", sharing);
+  const View view = testing::ViewOf(testing::StationRig(450.0, 20.0, 50.0, 320, 240), 30.0);
+  const cv::Mat mask = cv::Mat::zeros(view.height_px, view.width_px, CV_8UC1);
+  int closed_count = 0;
+  for (const auto& [name, mesh] : meshes) {
+    const MeshStats stats = ComputeStats(mesh);
+    const bool expected = stats.closed && stats.oriented;
+    closed_count += expected;
+    EXPECT_EQ(OutlineIndex(mesh).closed(), expected) << name;
+    EXPECT_EQ(SilhouetteReprojection(mesh, {view}, {mask}).closed_and_oriented, expected) << name;
+    EXPECT_EQ(outline_internal::SilhouetteReprojectionBy(
+                  mesh, {view}, {mask}, {}, outline_internal::OutlineSearch::kEveryEdge)
+                  .closed_and_oriented,
+              expected)
+        << name;
+    // ComputeStats is its two halves.
+    MeshStats halves = ComputeMeasures(mesh);
+    EXPECT_FALSE(halves.closed || halves.oriented) << name;
+    CheckEdges(mesh, &halves);
+    EXPECT_EQ(halves.closed, stats.closed) << name;
+    EXPECT_EQ(halves.oriented, stats.oriented) << name;
+    EXPECT_EQ(halves.volume_mm3, stats.volume_mm3) << name;
+    EXPECT_EQ(halves.area_mm2, stats.area_mm2) << name;
+  }
+  EXPECT_EQ(closed_count, 3);  // the three flawless meshes
+}
+
 // SilhouetteReprojection's IoUs, to the bit, from the planes and from every face, against masks
 // that differ from the silhouettes (the analytic spheres, shifted 2 px).
 TEST(Outline, ReprojectionIoUsEqualEveryEdgesToTheBit) {
@@ -228,8 +351,8 @@ TEST(Outline, ReprojectionIoUsEqualEveryEdgesToTheBit) {
         .copyTo(shifted(cv::Rect(2, 0, mask.cols - 2, mask.rows)));
     masks.push_back(shifted);
   }
-  const ReprojectionStats every =
-      outline_internal::SilhouetteReprojectionBy(mesh, views, masks, {}, /*every_edge=*/true);
+  const ReprojectionStats every = outline_internal::SilhouetteReprojectionBy(
+      mesh, views, masks, {}, outline_internal::OutlineSearch::kEveryEdge);
   const ReprojectionStats planes = SilhouetteReprojection(mesh, views, masks);
   ASSERT_EQ(every.iou.size(), views.size());
   for (std::size_t i = 0; i < views.size(); ++i) {
