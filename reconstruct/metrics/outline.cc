@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -518,8 +519,6 @@ constexpr std::size_t kBatchViews = 32;
 // Faces per chunk of a batch: their planes (~22 bytes a face) stay in the core's cache from one
 // view to the next.
 constexpr std::size_t kBatchFaces = 8192;
-// A batch names an outline edge face * 3 + corner in 32 bits.
-constexpr std::size_t kMaxBatchFaces = std::size_t{1} << 30;
 
 // For the faces [begin, end): bit `bit` of positive[i - begin] set when face i's plane decides it
 // positive in the view of `test`, of undecided[i - begin] when its plane does not decide it.
@@ -587,8 +586,9 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
       }
     }
   });
-  // Per chunk and view ([c * view_count + b]): the outline edges, face * 3 + corner.
-  std::vector<std::vector<std::uint32_t>> outline(chunk_count * view_count);
+  // Per chunk and view ([c * view_count + b]): the outline edges, as their positive face runs
+  // them (its vertices read here once for every view, in order, not in each view at random).
+  std::vector<std::vector<std::array<int, 2>>> outline(chunk_count * view_count);
   const std::vector<Eigen::Vector3i>& neighbours = index.neighbours();
   ParallelFor(0, chunk_count, [&](std::size_t c) {
     const std::size_t begin = c * kBatchFaces;
@@ -599,14 +599,16 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
       const ViewBits b = positive[static_cast<std::size_t>(across[1])];
       const ViewBits d = positive[static_cast<std::size_t>(across[2])];
       // The views where face i is positive with a neighbour that is not.
-      for (ViewBits views_out = positive[i] & ~(a & b & d); views_out != 0;
-           views_out &= views_out - 1) {
+      ViewBits views_out = positive[i] & ~(a & b & d);
+      if (views_out == 0) continue;
+      const Eigen::Vector3i& f = mesh.faces[i];
+      for (; views_out != 0; views_out &= views_out - 1) {
         const int v = std::countr_zero(views_out);
-        std::vector<std::uint32_t>& edges = outline[c * view_count + static_cast<std::size_t>(v)];
-        const auto face = static_cast<std::uint32_t>(3 * i);
-        if (!((a >> v) & 1u)) edges.push_back(face);
-        if (!((b >> v) & 1u)) edges.push_back(face + 1);
-        if (!((d >> v) & 1u)) edges.push_back(face + 2);
+        std::vector<std::array<int, 2>>& edges =
+            outline[c * view_count + static_cast<std::size_t>(v)];
+        if (!((a >> v) & 1u)) edges.push_back({f[0], f[1]});
+        if (!((b >> v) & 1u)) edges.push_back({f[1], f[2]});
+        if (!((d >> v) & 1u)) edges.push_back({f[2], f[0]});
       }
     }
   });
@@ -620,11 +622,9 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
     Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector2d hi = -lo;
     for (std::size_t c = 0; c < chunk_count; ++c) {
-      for (const std::uint32_t edge : outline[c * view_count + b]) {
-        const Eigen::Vector3i& f = mesh.faces[edge / 3];
-        const int e = static_cast<int>(edge % 3);
-        const Segment segment{Projected(view, mesh.vertices[f[e]]),
-                              Projected(view, mesh.vertices[f[(e + 1) % 3]])};
+      for (const auto& [from, to] : outline[c * view_count + b]) {
+        const Segment segment{Projected(view, mesh.vertices[from]),
+                              Projected(view, mesh.vertices[to])};
         lo = lo.cwiseMin(segment.p).cwiseMin(segment.q);
         hi = hi.cwiseMax(segment.p).cwiseMax(segment.q);
         segments.push_back(segment);
@@ -643,7 +643,7 @@ void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
   std::vector<std::vector<std::size_t>> batches;
   for (std::size_t i = 0; i < views.size(); ++i) {
     if (EveryVertexInFront(index, views[i])) tests[i] = PlaneTestOf(index, views[i]);
-    if (!tests[i].usable || mesh.faces.size() > kMaxBatchFaces) {
+    if (!tests[i].usable) {
       alone.push_back(i);
       continue;
     }
