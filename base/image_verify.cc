@@ -1,4 +1,5 @@
 #include "base/image_verify.h"
+#include "base/png_decode.h"
 
 // libjpeg and libpng report errors by longjmp: every function below that calls setjmp holds
 // only trivially destructible locals, and what outlives the jump lives in a context object owned
@@ -409,6 +410,8 @@ std::optional<Expected<cv::Mat>> DecodeVerifiedPng(std::span<const std::uint8_t>
     return std::nullopt;
   }
   if (HasPngChunk(bytes, "eXIf")) return std::nullopt;  // OpenCV may turn the picture
+  // The common plain files without libpng (faster; the same pixels), the rest with it.
+  if (std::optional<cv::Mat> plain = DecodePlainPng(bytes, imread_flags)) return std::move(*plain);
   PngContext context;
   context.bytes = bytes;
   context.imread_flags = imread_flags;
