@@ -520,17 +520,33 @@ constexpr std::size_t kBatchViews = 32;
 // view to the next.
 constexpr std::size_t kBatchFaces = 8192;
 
+// The faces' planes as PlaneBits reads them (OutlineIndex's arrays).
+struct FacePlanes {
+  const float* nx;
+  const float* ny;
+  const float* nz;
+  const float* offset;
+  const float* height;
+  const std::uint8_t* shared_axes;
+};
+
 // For the faces [begin, end): bit `bit` of positive[i - begin] set when face i's plane decides it
 // positive in the view of `test`, of undecided[i - begin] when its plane does not decide it.
-// OrientationsFromPlanes's expressions, rounded the same way; one view, every face in a row.
-void PlaneBits(const OutlineIndex& index, const PlaneTest& test, std::size_t begin, std::size_t end,
-               ViewBits bit, ViewBits* positive, ViewBits* undecided) {
-  const float* nx = index.normal_x().data();
-  const float* ny = index.normal_y().data();
-  const float* nz = index.normal_z().data();
-  const float* offset = index.offset().data();
-  const float* height = index.height().data();
-  const std::uint8_t* shared_axes = index.shared_axes().data();
+// OrientationsFromPlanes's expressions, rounded the same way; one view, every face in a row, on
+// vectors (built for AVX2 too where the processor has it: twice as wide, the same values, no
+// fused multiply-add).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void PlaneBits(const FacePlanes& planes, const PlaneTest& test, std::size_t begin,
+               std::size_t end, ViewBits bit, ViewBits* __restrict positive,
+               ViewBits* __restrict undecided) {
+  const float* __restrict nx = planes.nx;
+  const float* __restrict ny = planes.ny;
+  const float* __restrict nz = planes.nz;
+  const float* __restrict offset = planes.offset;
+  const float* __restrict height = planes.height;
+  const std::uint8_t* __restrict shared_axes = planes.shared_axes;
   const auto px = static_cast<float>(test.point.x());
   const auto py = static_cast<float>(test.point.y());
   const auto pz = static_cast<float>(test.point.z());
@@ -563,6 +579,9 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
   const std::size_t view_count = batch.size();
   const std::size_t chunk_count = (face_count + kBatchFaces - 1) / kBatchFaces;
   std::vector<ViewBits> positive(face_count, 0);
+  const FacePlanes planes{index.normal_x().data(), index.normal_y().data(),
+                          index.normal_z().data(), index.offset().data(),
+                          index.height().data(),   index.shared_axes().data()};
   tbb::enumerable_thread_specific<std::vector<ViewBits>> undecided_store;
   ParallelFor(0, chunk_count, [&](std::size_t c) {
     const std::size_t begin = c * kBatchFaces;
@@ -571,7 +590,7 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
     undecided.assign(end - begin, 0);
     ViewBits* chunk = positive.data() + begin;
     for (std::size_t b = 0; b < view_count; ++b) {
-      PlaneBits(index, tests[batch[b]], begin, end, ViewBits{1} << b, chunk, undecided.data());
+      PlaneBits(planes, tests[batch[b]], begin, end, ViewBits{1} << b, chunk, undecided.data());
     }
     // The faces a plane leaves undecided, projected in that view.
     for (std::size_t j = 0; j < end - begin; ++j) {
