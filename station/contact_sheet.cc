@@ -1,6 +1,8 @@
 #include "station/contact_sheet.h"
 
 #include <algorithm>
+#include <cmath>
+#include <numeric>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
@@ -19,6 +21,40 @@ cv::Mat ContactSheetThumbnail(const cv::Mat& frame) {
   const double scale = std::min(1.0, static_cast<double>(kTileWidthPx) / frame.cols);
   cv::Mat thumbnail;
   cv::resize(frame, thumbnail, cv::Size(), scale, scale, cv::INTER_AREA);
+  return thumbnail;
+}
+
+cv::Mat ContactSheetThumbnail(const cv::Mat& frame, const cv::Rect& content) {
+  const double fx = std::min(1.0, static_cast<double>(kTileWidthPx) / frame.cols);
+  // cv::resize's own factor (1 / fx, frame pixels a thumbnail pixel): when it is j / 64 exactly,
+  // every thumbnail pixel's frame pixels and weights repeat, shifted by `period` frame pixels,
+  // every `step` thumbnail pixels; a part cut at multiples of `period` shrinks to the same pixels.
+  const double scale = 1.0 / fx;
+  const double scale64 = scale * 64.0;
+  if (fx >= 1.0 || !(scale64 < 1e6) || scale64 != std::floor(scale64)) {
+    return ContactSheetThumbnail(frame);
+  }
+  const auto j = static_cast<int>(scale64);
+  const int step = 64 / std::gcd(j, 64);
+  const int period = j / std::gcd(j, 64);  // step * scale
+  const cv::Rect inside = content & cv::Rect(0, 0, frame.cols, frame.rows);
+  const cv::Size size(cvRound(frame.cols * fx), cvRound(frame.rows * fx));
+  if (inside.empty()) return cv::Mat::zeros(size, frame.type());  // a zero frame shrinks to zeros
+  const int x0 = inside.x / period * period;
+  const int y0 = inside.y / period * period;
+  const int x1 = std::min(frame.cols, (inside.br().x + period - 1) / period * period);
+  const int y1 = std::min(frame.rows, (inside.br().y + period - 1) / period * period);
+  cv::Mat part;
+  cv::resize(frame(cv::Rect(x0, y0, x1 - x0, y1 - y0)), part, cv::Size(), fx, fx, cv::INTER_AREA);
+  // Where the part's pixels go: its first at the period's; its last at the thumbnail's end when
+  // the part reaches the frame's (a shorter last pixel), else at its own period's end.
+  const int u0 = x0 / period * step;
+  const int v0 = y0 / period * step;
+  const int u1 = x1 == frame.cols ? size.width : x1 / period * step;
+  const int v1 = y1 == frame.rows ? size.height : y1 / period * step;
+  if (part.cols != u1 - u0 || part.rows != v1 - v0) return ContactSheetThumbnail(frame);
+  cv::Mat thumbnail = cv::Mat::zeros(size, frame.type());
+  part.copyTo(thumbnail(cv::Rect(u0, v0, part.cols, part.rows)));
   return thumbnail;
 }
 

@@ -110,9 +110,13 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
       tiles[i] = ContactSheetOutline(thumbnails[i], mask);
     } else {
       // The mask's thumbnail in grey, then in colour: the pixels of shrinking it in colour (each
-      // channel alike), for a third of the work.
+      // channel alike), for a third of the work; only its window's part shrunk where that is
+      // exact.
+      const cv::Rect content = masks[i].empty() || mask_origins.empty()
+                                   ? cv::Rect(cv::Point(), mask.size())
+                                   : cv::Rect(mask_origins[i], masks[i].size());
       cv::Mat shown;
-      cv::cvtColor(ContactSheetThumbnail(mask), shown, cv::COLOR_GRAY2BGR);
+      cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
       tiles[i] = ContactSheetOutline(shown, mask);
     }
   });

@@ -116,5 +116,41 @@ TEST(ContactSheetTest, AGreyThumbnailInColourIsTheThumbnailOfTheColourCopy) {
   }
 }
 
+// A silhouette's thumbnail from the part around its rectangle is the whole mask's thumbnail, to
+// the bit: at widths whose shrinking factor repeats exactly (720: 15 px to 4; 768: 4 to 1; 960:
+// 5 to 1) and at the others (the whole mask shrunk), for blobs anywhere, at the borders included,
+// for tight and loose rectangles, and for an empty one.
+TEST(ContactSheetTest, AThumbnailFromTheSilhouettesRectangleIsTheWholeMasksThumbnail) {
+  cv::RNG rng(11);
+  int cases = 0;
+  for (const cv::Size size : {cv::Size(720, 576), cv::Size(768, 576), cv::Size(960, 720),
+                              cv::Size(1280, 960), cv::Size(641, 479), cv::Size(150, 100)}) {
+    for (int k = 0; k < 12; ++k) {
+      cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
+      const cv::Point centre(rng.uniform(0, size.width), rng.uniform(0, size.height));
+      cv::ellipse(mask, centre, {rng.uniform(2, size.width / 4), rng.uniform(2, size.height / 4)},
+                  rng.uniform(0.0, 180.0), 0, 360, cv::Scalar(255), cv::FILLED);
+      if (k % 4 == 0) mask.row(size.height - 1).setTo(255);  // to the bottom border
+      if (k % 4 == 1) mask.col(size.width - 1).setTo(255);   // to the right border
+      cv::Rect content = cv::boundingRect(mask);
+      if (k % 3 == 0) {  // a window with zeros around the silhouette
+        content = cv::Rect(content.x - 7, content.y - 5, content.width + 20, content.height + 9) &
+                  cv::Rect(cv::Point(), size);
+      }
+      const cv::Mat expected = ContactSheetThumbnail(mask);
+      const cv::Mat shrunk = ContactSheetThumbnail(mask, content);
+      ASSERT_EQ(shrunk.size(), expected.size()) << size << " " << k;
+      ASSERT_EQ(shrunk.type(), expected.type());
+      EXPECT_EQ(cv::norm(shrunk, expected, cv::NORM_INF), 0.0) << size << " " << k;
+      ++cases;
+    }
+    const cv::Mat none(size, CV_8UC1, cv::Scalar(0));
+    EXPECT_EQ(cv::norm(ContactSheetThumbnail(none, cv::Rect()), ContactSheetThumbnail(none),
+                       cv::NORM_INF),
+              0.0);
+  }
+  EXPECT_EQ(cases, 72);
+}
+
 }  // namespace
 }  // namespace revolve::station
