@@ -4,6 +4,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <map>
 
 #include <fmt/format.h>
@@ -166,21 +167,22 @@ std::optional<cv::Mat> BinarySilhouette(const cv::Mat& image) {
     }
     cv::extractChannel(image, grey, 0);
   }
-  int hist[256] = {};
-  for (int v = 0; v < grey.rows; ++v) {
-    const auto* row = grey.ptr<std::uint8_t>(v);
-    for (int u = 0; u < grey.cols; ++u) ++hist[row[u]];
-  }
-  int levels = 0;
-  int high = 0;
-  for (int i = 0; i < 256; ++i) {
-    if (hist[i] == 0) continue;
-    ++levels;
-    high = i;
-  }
-  if (levels > 2 || (levels == 2 && hist[0] == 0)) return std::nullopt;
-  if (levels == 2 && high != 1 && high != 255) return std::nullopt;
+  // At most two grey levels, 0 and 1 or 255, or one level of any value: the levels from the
+  // extremes, then the image compared with its mask (no histogram: counting long runs of one
+  // value in memory waits on each count's store).
+  double low = 0.0;
+  double high = 0.0;
+  if (!grey.empty()) cv::minMaxIdx(grey, &low, &high);
   cv::Mat mask = grey != 0;
+  if (low != high) {
+    if (low != 0.0 || (high != 1.0 && high != 255.0)) return std::nullopt;
+    const cv::Mat levels = high == 255.0 ? mask : cv::Mat(mask & 1);  // what 0/high pixels are
+    for (int v = 0; v < grey.rows; ++v) {
+      if (std::memcmp(grey.ptr(v), levels.ptr(v), static_cast<std::size_t>(grey.cols)) != 0) {
+        return std::nullopt;
+      }
+    }
+  }
   // Polarity from the border: mostly object there means the object is black on white.
   std::int64_t border = 0;
   std::int64_t border_set = 0;

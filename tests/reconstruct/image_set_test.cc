@@ -53,6 +53,24 @@ TEST(BinarySilhouette, EitherPolarityFromTheBorder) {
   cv::Mat grey = white_on_black.clone();
   grey.at<std::uint8_t>(0, 0) = 128;
   EXPECT_FALSE(BinarySilhouette(grey).has_value());
+  // Two levels are 0 and 1 or 255; a third anywhere, or another pair, is a photo.
+  for (const auto& [other, at] :
+       {std::pair{1, cv::Point(59, 39)}, std::pair{255, cv::Point(30, 20)},
+        std::pair{7, cv::Point(5, 5)}}) {
+    cv::Mat three = other == 255 ? ones.clone() : white_on_black.clone();
+    three.at<std::uint8_t>(at) = static_cast<std::uint8_t>(other);
+    EXPECT_FALSE(BinarySilhouette(three).has_value()) << other;
+  }
+  EXPECT_FALSE(BinarySilhouette(white_on_black / 255 * 7).has_value());  // 0 and 7
+  cv::Mat no_zero = white_on_black.clone();
+  no_zero.setTo(10, white_on_black == 0);
+  EXPECT_FALSE(BinarySilhouette(no_zero).has_value());  // 10 and 255
+  // One level: all object or all background, whatever the value.
+  const std::optional<cv::Mat> flat = BinarySilhouette(cv::Mat(40, 60, CV_8UC1, cv::Scalar(37)));
+  ASSERT_TRUE(flat.has_value());
+  const std::optional<cv::Mat> none = BinarySilhouette(cv::Mat(40, 60, CV_8UC1, cv::Scalar(0)));
+  ASSERT_TRUE(none.has_value());
+  EXPECT_EQ(cv::countNonZero(*none), 0);
 }
 
 // SegmentPhoto as it was written first, on the whole image (the function now works on the
