@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <vector>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -82,15 +83,38 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
         cv::Rect(roi.x - radius, roi.y - radius, roi.width + 2 * radius, roi.height + 2 * radius) &
         image;
     result.agreement[i] = MaskIoU(masks[i](roi), others(roi));
-    cv::Mat allowed;
-    cv::dilate(
-        others(roi), allowed,
-        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
-    cv::bitwise_and(masks[i](roi), allowed, result.masks[i]);
+    result.masks[i] = CutToDilated(masks[i](roi), others(roi), radius);
     result.cut_roi[i] = roi;
     result.size[i] = masks[i].size();
   });
   return result;
+}
+
+cv::Mat CutToDilated(const cv::Mat& mask, const cv::Mat& others, int radius) {
+  cv::Mat cut = mask.clone();
+  const cv::Mat ellipse =
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+  std::vector<cv::Point> reach;  // the ellipse's offsets from its centre
+  for (int y = 0; y < ellipse.rows; ++y) {
+    for (int x = 0; x < ellipse.cols; ++x) {
+      if (ellipse.at<std::uint8_t>(y, x) != 0) reach.emplace_back(x - radius, y - radius);
+    }
+  }
+  for (int y = 0; y < cut.rows; ++y) {
+    std::uint8_t* row = cut.ptr<std::uint8_t>(y);
+    const std::uint8_t* on = others.ptr<std::uint8_t>(y);
+    for (int x = 0; x < cut.cols; ++x) {
+      if (row[x] == 0 || on[x] != 0) continue;
+      const bool near = std::any_of(reach.begin(), reach.end(), [&](const cv::Point& d) {
+        const int u = x + d.x;
+        const int v = y + d.y;
+        return u >= 0 && v >= 0 && u < others.cols && v < others.rows &&
+               others.at<std::uint8_t>(v, u) != 0;
+      });
+      if (!near) row[x] = 0;
+    }
+  }
+  return cut;
 }
 
 cv::Mat SilhouetteConsensus::CutMask(std::size_t i) const {

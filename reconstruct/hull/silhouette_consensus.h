@@ -50,4 +50,11 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
                                                      const Eigen::Vector3d& box_max,
                                                      const ConsensusOptions& options = {});
 
+// `mask` where `others` dilated by the ellipse of `radius` (cv::getStructuringElement's
+// MORPH_ELLIPSE, 2 radius + 1 wide) is set: cv::bitwise_and(mask, dilated), the pixels of
+// `others` outside the Mat counting as zero; without dilating `others`: a mask pixel on `others`
+// is kept (the ellipse's centre), only those off it look for one within the ellipse.
+// Precondition: CV_8UC1, one size; radius >= 0.
+cv::Mat CutToDilated(const cv::Mat& mask, const cv::Mat& others, int radius);
+
 }  // namespace revolve::reconstruct

@@ -1,4 +1,5 @@
-// The hierarchical carver against the per-voxel reference, and the point-test contract.
+// The hierarchical carver against the per-voxel reference, and the point-test contract; the
+// consensus's cut.
 #include "reconstruct/hull/visual_hull.h"
 
 #include <random>
@@ -7,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "reconstruct/cameras/views.h"
+#include "reconstruct/hull/silhouette_consensus.h"
 #include "reconstruct/metrics/metrics.h"
 #include "tests/reconstruct/sphere_scene.h"
 
@@ -428,6 +430,43 @@ TEST(VisualHull, SurfaceVerticesEqualBruteForceFirstExitWithThesisViews) {
     ASSERT_TRUE(hull.Integrate(mask, ThesisView(kWidth, kHeight, angle)).has_value());
   }
   ExpectVerticesAtBruteForceFirstExit(hull, 20.3);
+}
+
+}  // namespace
+}  // namespace revolve::reconstruct
+
+namespace revolve::reconstruct {
+namespace {
+
+// The consensus's cut (issue 17) without the dilation is the dilation's: random blobs, shifted
+// against each other, near the borders, radii 0 to 7.
+TEST(CutToDilated, IsTheMaskAndTheDilatedOthers) {
+  cv::RNG rng(5);
+  int differing = 0;
+  for (int k = 0; k < 40; ++k) {
+    cv::Mat mask(150, 200, CV_8UC1, cv::Scalar(0));
+    cv::Mat others(150, 200, CV_8UC1, cv::Scalar(0));
+    for (int b = 0; b < 3; ++b) {
+      const cv::Point centre(rng.uniform(0, 200), rng.uniform(0, 150));
+      const cv::Size axes(rng.uniform(3, 60), rng.uniform(3, 50));
+      cv::ellipse(others, centre, axes, rng.uniform(0.0, 180.0), 0, 360, cv::Scalar(255),
+                  cv::FILLED);
+      cv::ellipse(mask, centre + cv::Point(rng.uniform(-9, 10), rng.uniform(-9, 10)),
+                  axes + cv::Size(rng.uniform(0, 8), rng.uniform(0, 8)), rng.uniform(0.0, 180.0), 0,
+                  360, cv::Scalar(k % 2 == 0 ? 255 : 1), cv::FILLED);
+    }
+    const int radius = k % 8;
+    cv::Mat dilated;
+    cv::dilate(
+        others, dilated,
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1)));
+    cv::Mat expected;
+    cv::bitwise_and(mask, dilated, expected);
+    const cv::Mat cut = CutToDilated(mask, others, radius);
+    EXPECT_EQ(cv::countNonZero(cut != expected), 0) << k;
+    differing += cv::countNonZero(expected != mask) > 0;
+  }
+  EXPECT_GT(differing, 20);  // the cut removed pixels in most cases
 }
 
 }  // namespace
