@@ -87,9 +87,14 @@ BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d
       }
       continue;
     }
+    // The box's rows it reaches (clamped before the conversion to int); most outline edges of a
+    // fine mesh reach none, and are done before the division.
+    const double row_top = std::max<double>(y0, std::ceil(top));
+    const double row_bottom = std::min<double>(y0 + height - 1, std::floor(bottom));
+    if (!(row_top <= row_bottom)) continue;
+    const auto v_top = static_cast<int>(row_top);
+    const auto v_bottom = static_cast<int>(row_bottom);
     const int direction = q.y() > p.y() ? 1 : -1;
-    const int v_top = std::max(y0, static_cast<int>(std::ceil(top)));
-    const int v_bottom = std::min(y0 + height - 1, static_cast<int>(std::floor(bottom)));
     const double slope = (q.x() - p.x()) / (q.y() - p.y());
     for (int v = v_top; v <= v_bottom; ++v) {
       const double x = p.x() + (static_cast<double>(v) - p.y()) * slope;
