@@ -1,7 +1,5 @@
 #include "base/image_codecs.h"
 
-#include <dlfcn.h>
-
 #include <atomic>
 #include <climits>
 #include <mutex>
@@ -12,6 +10,7 @@
 
 #include "base/atomic_file.h"
 #include "base/image_codecs_plugin.h"
+#include "base/plugin.h"
 
 namespace revolve {
 namespace {
@@ -21,46 +20,18 @@ namespace plugin = image_codecs_plugin;
 
 std::atomic<bool> g_loaded{false};
 
-// Where the plugin is: beside an installed executable, then the build tree's.
-std::vector<fs::path> Candidates() {
-  std::vector<fs::path> paths;
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) paths.push_back((exe.parent_path() / REVOLVE_IMGCODECS_FROM_BINDIR).lexically_normal());
-  paths.emplace_back(REVOLVE_IMGCODECS_BUILD_FILE);
-  return paths;
-}
-
-// The plugin's table, or why it could not be loaded. The handle is never closed: OpenCV's
-// libraries stay for the life of the process.
+// The plugin's table, or why it could not be loaded.
 Expected<const plugin::Table*> Load() {
-  std::string tried;
-  for (const fs::path& path : Candidates()) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) {
-      tried += fmt::format("\n  {}: no such file", path.string());
-      continue;
-    }
-    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (handle == nullptr) {
-      tried += fmt::format("\n  {}: {}", path.string(), dlerror());
-      continue;
-    }
-    auto entry = reinterpret_cast<plugin::EntryPoint>(dlsym(handle, plugin::kEntryPoint));
-    const plugin::Table* table = entry != nullptr ? entry() : nullptr;
-    if (table == nullptr || table->version != plugin::kVersion) {
-      tried += fmt::format("\n  {}: not this build's plugin (rebuild or reinstall revolve)",
-                           path.string());
-      continue;
-    }
-    g_loaded = true;
-    return table;
-  }
-  return MakeError(ErrorCode::kIo,
-                   fmt::format("cannot load OpenCV's image codecs (librevolve_imgcodecs.so); "
-                               "install revolve whole (cmake --install) or run it from its "
-                               "build tree. Tried:{}",
-                               tried));
+  const PluginFile file{"OpenCV's image codecs (librevolve_imgcodecs.so)",
+                        REVOLVE_IMGCODECS_FROM_BINDIR, REVOLVE_IMGCODECS_BUILD_FILE};
+  const plugin::Table* table = nullptr;
+  const Expected<void*> entry = LoadPluginEntry(file, plugin::kEntryPoint, [&](void* address) {
+    table = reinterpret_cast<plugin::EntryPoint>(address)();
+    return table != nullptr && table->version == plugin::kVersion;
+  });
+  if (!entry) return std::unexpected(entry.error());
+  g_loaded = true;
+  return table;
 }
 
 const Expected<const plugin::Table*>& Codecs() {

@@ -1,4 +1,6 @@
-#include "capture/libcamera/libcamera_camera.h"
+// The libcamera plugin (capture/libcamera/libcamera_plugin.h): built into
+// librevolve_libcamera.so, not into revolve.
+#include "capture/libcamera/libcamera_plugin.h"
 
 #include <sys/mman.h>
 
@@ -11,8 +13,7 @@
 #include <fmt/format.h>
 #include <libcamera/libcamera.h>
 
-#include "base/log.h"
-#include "capture/v4l2/pixel_convert.h"
+#include "capture/v4l2/pixel_convert.h"  // the FourCC constants (header only)
 
 namespace revolve::capture {
 namespace {
@@ -25,7 +26,8 @@ constexpr std::uint32_t kDrmBgr888 = FourCc('B', 'G', '2', '4');
 
 class LibcameraCamera final : public Camera {
  public:
-  explicit LibcameraCamera(const LibcameraOptions& options) : options_(options) {}
+  LibcameraCamera(const LibcameraOptions& options, libcamera_plugin::ConvertFn convert)
+      : options_(options), convert_(convert) {}
   ~LibcameraCamera() override { Stop(); }
 
   Expected<FrameFormat> Start() override {
@@ -192,10 +194,10 @@ class LibcameraCamera final : public Camera {
     std::uint32_t fourcc = fourcc_;
     Expected<cv::Mat> image = MakeError(ErrorCode::kInternal, "");
     if (fourcc == kDrmRgb888 || fourcc == kDrmBgr888) {
-      image = ConvertToBgr(data, kDrmRgb888 == fourcc ? kFourCcBgr24 : kFourCcRgb24, width_,
-                           height_, stride_);
+      image = convert_(data, kDrmRgb888 == fourcc ? kFourCcBgr24 : kFourCcRgb24, width_, height_,
+                       stride_);
     } else {
-      image = ConvertToBgr(data, fourcc, width_, height_, stride_);
+      image = convert_(data, fourcc, width_, height_, stride_);
     }
     ::munmap(address, length);
     if (!image) return std::unexpected(image.error());
@@ -205,6 +207,7 @@ class LibcameraCamera final : public Camera {
   }
 
   LibcameraOptions options_;
+  libcamera_plugin::ConvertFn convert_;
   std::mutex mutex_;
   std::condition_variable completed_cv_;
   std::unique_ptr<lc::CameraManager> manager_;
@@ -220,13 +223,12 @@ class LibcameraCamera final : public Camera {
   int width_ = 0, height_ = 0, stride_ = 0;
 };
 
-}  // namespace
-
-Expected<std::unique_ptr<Camera>> CreateLibcameraCamera(const LibcameraOptions& options) {
-  return std::unique_ptr<Camera>(std::make_unique<LibcameraCamera>(options));
+Expected<std::unique_ptr<Camera>> Create(const LibcameraOptions& options,
+                                         libcamera_plugin::ConvertFn convert) {
+  return std::unique_ptr<Camera>(std::make_unique<LibcameraCamera>(options, convert));
 }
 
-std::string ListLibcameraCameras() {
+std::string List() {
   // Keep libcamera's own log (e.g. "No IPA found") off the listing unless asked for.
   ::setenv("LIBCAMERA_LOG_LEVELS", "*:ERROR", 0);
   lc::CameraManager manager;
@@ -238,4 +240,13 @@ std::string ListLibcameraCameras() {
   return out;
 }
 
+const libcamera_plugin::Table kTable{libcamera_plugin::kVersion, &Create, &List};
+
+}  // namespace
 }  // namespace revolve::capture
+
+// The plugin's one exported name (the rest is hidden).
+extern "C" [[gnu::visibility("default")]] const revolve::capture::libcamera_plugin::Table*
+revolve_libcamera_plugin_v1() {
+  return &revolve::capture::kTable;
+}

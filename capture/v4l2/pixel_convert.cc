@@ -13,15 +13,6 @@ std::uint8_t Clamp8(int value) { return static_cast<std::uint8_t>(std::clamp(val
 
 }  // namespace
 
-std::string FourCcToString(std::uint32_t fourcc) {
-  std::string out(4, '?');
-  for (int i = 0; i < 4; ++i) {
-    const char c = static_cast<char>((fourcc >> (8 * i)) & 0xFF);
-    if (c >= 0x20 && c < 0x7F) out[i] = c;
-  }
-  return out;
-}
-
 Expected<std::uint32_t> ParseFourCc(std::string_view text) {
   if (text.size() != 4) {
     return MakeError(ErrorCode::kBadInput,

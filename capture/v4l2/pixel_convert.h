@@ -29,7 +29,16 @@ inline constexpr std::uint32_t kFourCcRgb24 = FourCc('R', 'G', 'B', '3');
 inline constexpr std::uint32_t kFourCcBgr24 = FourCc('B', 'G', 'R', '3');
 
 // "YUYV" for kFourCcYuyv; non-printable bytes become '?'.
-std::string FourCcToString(std::uint32_t fourcc);
+// Inline: the libcamera plugin uses it too (capture/libcamera/libcamera_plugin.h).
+inline std::string FourCcToString(std::uint32_t fourcc) {
+  std::string out(4, '?');
+  for (int i = 0; i < 4; ++i) {
+    const char c = static_cast<char>((fourcc >> (8 * i)) & 0xFF);
+    if (c >= 0x20 && c < 0x7F) out[i] = c;
+  }
+  return out;
+}
+
 // bad_input unless `text` has exactly four characters.
 Expected<std::uint32_t> ParseFourCc(std::string_view text);
 

@@ -105,6 +105,18 @@ TEST_F(SystemdTest, InstallLaysOutBinariesUnitAndExampleConfig) {
   EXPECT_EQ(board.exit_code, 0) << board.out;
   EXPECT_TRUE(fs::exists(dir_ / "board.png"));
   EXPECT_NE(board.err.find("file=" + plugin.string()), std::string::npos) << board.err;
+  // libcamera too, where this build has that backend (capture/libcamera/libcamera_plugin.h): not
+  // loaded by a command that opens no camera, loaded from the installed plugin by one that lists
+  // them.
+  EXPECT_EQ(quiet.err.find("libcamera"), std::string::npos);
+  const fs::path camera_plugin = prefix / "lib/revolve/librevolve_libcamera.so";
+  if (fs::exists(camera_plugin)) {
+    const CommandResult list = RunCommand({(prefix / "bin/revolve").string(), "camera", "list"},
+                                          {"LD_DEBUG=files"}, dir_, 60s);
+    EXPECT_EQ(list.exit_code, 0) << list.err;
+    EXPECT_NE(list.out.find("libcamera: "), std::string::npos) << list.out;
+    EXPECT_NE(list.err.find("file=" + camera_plugin.string()), std::string::npos);
+  }
   const std::string sysusers = ReadAll(prefix / "lib/sysusers.d/revolved.conf");
   EXPECT_NE(sysusers.find("m revolve video"), std::string::npos);
   EXPECT_NE(sysusers.find("m revolve dialout"), std::string::npos);
