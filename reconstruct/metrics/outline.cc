@@ -565,7 +565,7 @@ void PlaneBits(const FacePlanes& planes, const PlaneTest& test, std::size_t begi
     const float s = nx[i] * px + ny[i] * py + nz[i] * pz - offset[i] * k;
     const ViewBits flat = (shared_axes[i] & flat_axes) != 0 ? ~ViewBits{0} : 0;
     const ViewBits decided =
-        ((std::abs(s) > threshold) & (height[i] > min_height) ? ~ViewBits{0} : 0) | flat;
+        (((std::abs(s) > threshold) & (height[i] > min_height)) ? ~ViewBits{0} : 0) | flat;
     const ViewBits sign = ((s > 0.0f ? ~ViewBits{0} : 0) ^ flip) & ~flat;
     positive[i - begin] |= sign & decided & bit;
     undecided[i - begin] |= ~decided & bit;

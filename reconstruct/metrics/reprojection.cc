@@ -123,9 +123,10 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
       for (int v = v0; v <= v1; ++v) {
         auto* row = out.ptr<std::uint8_t>(v);
         for (int u = u0; u <= u1; ++u) {
-          const bool inside = Inside(edges[0], sign, u, v) & Inside(edges[1], sign, u, v) &
-                              Inside(edges[2], sign, u, v);
-          row[u] |= inside ? 255 : 0;
+          const int inside = static_cast<int>(Inside(edges[0], sign, u, v)) &
+                             static_cast<int>(Inside(edges[1], sign, u, v)) &
+                             static_cast<int>(Inside(edges[2], sign, u, v));
+          row[u] |= inside != 0 ? 255 : 0;
         }
       }
       continue;
@@ -200,7 +201,7 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
   if (closed && search == OutlineSearch::kBatched) {
     SilhouettesFromOutline(
         mesh, *index, views,
-        [&](std::size_t i, std::optional<BoxedSilhouette> outline) { measure(i, outline); });
+        [&](std::size_t i, const std::optional<BoxedSilhouette>& outline) { measure(i, outline); });
   } else {
     tbb::enumerable_thread_specific<OutlineScratch> scratch;  // each thread's, view to view
     ParallelFor(0, views.size(), [&](std::size_t i) {
