@@ -165,6 +165,11 @@ std::optional<cv::Mat> DecodePlainPng(std::span<const std::uint8_t> bytes, int i
     at += 12 + std::size_t{length};
   }
   if (idat.empty()) return std::nullopt;
+  // A 32 KB window declared (CINFO 7, what zlib writes for all but tiny data): libpng holds a
+  // stream to the window its header declares, libdeflate always allows 32 KB back.
+  if (idat.front().empty() || (idat.front()[0] >> 4) != 7) return std::nullopt;
+  // RGB read as grey: OpenCV's own conversion.
+  if (header->channels == 3 && imread_flags == cv::IMREAD_GRAYSCALE) return std::nullopt;
   // The zlib stream whole (one chunk: in place).
   std::vector<std::uint8_t> joined;
   std::span<const std::uint8_t> stream = idat.front();
@@ -186,7 +191,6 @@ std::optional<cv::Mat> DecodePlainPng(std::span<const std::uint8_t> bytes, int i
     return std::nullopt;
   }
   const int channels = header->channels;
-  if (channels == 3 && imread_flags == cv::IMREAD_GRAYSCALE) return std::nullopt;
   const auto width = static_cast<int>(header->width);
   const auto height = static_cast<int>(header->height);
   cv::Mat image(height, width, channels == 1 ? CV_8UC1 : CV_8UC3);

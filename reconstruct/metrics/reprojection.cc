@@ -199,9 +199,7 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
     stats.iou[i] = either == 0 ? 1.0 : static_cast<double>(both) / static_cast<double>(either);
   };
   if (closed && search == OutlineSearch::kBatched) {
-    SilhouettesFromOutline(
-        mesh, *index, views,
-        [&](std::size_t i, const std::optional<BoxedSilhouette>& outline) { measure(i, outline); });
+    SilhouettesFromOutline(mesh, *index, views, measure);
   } else {
     tbb::enumerable_thread_specific<OutlineScratch> scratch;  // each thread's, view to view
     ParallelFor(0, views.size(), [&](std::size_t i) {

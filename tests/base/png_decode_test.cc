@@ -212,6 +212,30 @@ TEST(DecodePlainPng, AnythingAmissIsLeftToLibpng) {
     extra.insert(extra.end(), good.begin() + 8 + 25, good.end());
     cases.push_back({type + " chunk", extra, false});
   }
+  {
+    // A 512-byte window declared (zlib's header): libpng holds the stream to it, so it decides.
+    Bytes raw;
+    for (const Bytes& row : rows) {
+      raw.push_back(0);
+      raw.insert(raw.end(), row.begin(), row.end());
+    }
+    z_stream z{};
+    EXPECT_EQ(deflateInit2(&z, 6, Z_DEFLATED, 9, 8, Z_DEFAULT_STRATEGY), Z_OK);
+    Bytes stream(deflateBound(&z, raw.size()));
+    z.next_in = raw.data();
+    z.avail_in = static_cast<uInt>(raw.size());
+    z.next_out = stream.data();
+    z.avail_out = static_cast<uInt>(stream.size());
+    EXPECT_EQ(deflate(&z, Z_FINISH), Z_STREAM_END);
+    stream.resize(z.total_out);
+    deflateEnd(&z);
+    ASSERT_EQ(stream[0] >> 4, 1);
+    Bytes png(good.begin(), good.begin() + 8 + 25);
+    Chunk(&png, "IDAT", stream);
+    Chunk(&png, "IEND", {});
+    cases.push_back({"a small window", png, false});
+    EXPECT_TRUE(DecodeVerifiedPng(png, cv::IMREAD_UNCHANGED).value_or(cv::Mat()).has_value());
+  }
   Plan sixteen;
   sixteen.depth = 16;
   cases.push_back({"16 bits", MakePng(rows, 33, sixteen), false});

@@ -1,6 +1,8 @@
 // Fuzzes what an image file goes through before OpenCV may decode it: the header check, then a
 // decode to the end with libjpeg, libpng or libtiff where every warning is an error
-// (base/image_verify.h). No input may crash, leak, read out of bounds or hang.
+// (base/image_verify.h). No input may crash, leak, read out of bounds or hang. The one-pass
+// decoders, and DecodePlainPng (base/png_decode.h, libdeflate) among them, decode exactly what
+// libpng's check passes.
 #include <cstdint>
 #include <cstdlib>
 #include <span>
@@ -9,6 +11,7 @@
 
 #include "base/image_header.h"
 #include "base/image_verify.h"
+#include "base/png_decode.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::span<const std::uint8_t> bytes(data, size);
@@ -28,6 +31,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           ((*decoded)->cols != header->width_px || (*decoded)->rows != header->height_px)) {
         std::abort();
       }
+      // What DecodePlainPng decodes, libpng passes too.
+      if (png && revolve::DecodePlainPng(bytes, flags) && !verified) std::abort();
     }
   }
   return 0;
