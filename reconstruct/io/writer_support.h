@@ -115,8 +115,12 @@ Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file
 // The .obj into `obj` and its material library into `mtl` (both opened); the PNG the .mtl names
 // is the caller's to write.
 Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl);
+// Textured, its bulk is written before the PNG is had, where it lies if the PNG is
+// `png_size_guess` bytes (the bytes are the same for any guess; a right one writes the bulk once,
+// while the PNG is being encoded).
+inline constexpr std::size_t kPngSizeGuess = std::size_t{1} << 20;
 Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& png,
-                      AtomicFile* file);
+                      AtomicFile* file, std::size_t png_size_guess = kPngSizeGuess);
 
 // Unit normal of each vertex: the area-weighted sum of its faces' normals; +z where that is zero.
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh);

@@ -6,14 +6,18 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <random>
 #include <sstream>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "base/png_encode.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "tests/support/test_files.h"
 
 namespace revolve::reconstruct {
@@ -194,6 +198,45 @@ TEST_F(ModelWriterTest, ErrorsNameTheFile) {
   EXPECT_NE(written.error().message.find((dir_ / "nope" / "model.obj").string()), std::string::npos)
       << written.error().message;
   EXPECT_TRUE(Contents().empty());
+}
+
+TEST_F(ModelWriterTest, TheGlbIsTheSameWhateverThePngSizeGuessed) {
+  // The textured glTF's bulk is written before its PNG is encoded, where a guess of the PNG's
+  // size puts it; a wrong guess (the JSON longer or shorter) must not change a byte.
+  const Mesh mesh = Grid(40, 5);
+  const Expected<std::string> png = EncodePng(mesh.texture);
+  ASSERT_TRUE(png);
+  const internal::StageGate done(MeshStage::kDone);
+  std::vector<std::string> files;
+  for (const std::size_t guess :
+       {std::size_t{1}, std::size_t{99}, png->size(), std::size_t{1} << 20, std::size_t{1} << 40}) {
+    const fs::path path = dir_ / fmt::format("guess{}.glb", guess);
+    AtomicFile file(path);
+    ASSERT_TRUE(file.Open());
+    ASSERT_TRUE(internal::PutGlb(
+        mesh, done, [&png] { return &*png; }, &file, guess));
+    ASSERT_TRUE(file.Commit());
+    std::ifstream in(path, std::ios::binary);
+    files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  ASSERT_TRUE(WriteGlb(mesh, dir_ / "whole.glb"));
+  std::ifstream in(dir_ / "whole.glb", std::ios::binary);
+  const std::string whole(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>{});
+  for (const std::string& bytes : files) EXPECT_TRUE(bytes == whole);
+  // And it is a whole GLB: its length, its JSON chunk, then the binary chunk to the end, which
+  // opens with the first face's first corner and ends with the PNG (padded to 4 bytes).
+  ASSERT_GT(whole.size(), 28u);
+  std::uint32_t total = 0, json_length = 0, bin_length = 0;
+  std::memcpy(&total, whole.data() + 8, 4);
+  std::memcpy(&json_length, whole.data() + 12, 4);
+  EXPECT_EQ(total, whole.size());
+  const std::size_t bin = 20 + std::size_t{json_length};
+  ASSERT_LT(bin + 8, whole.size());
+  std::memcpy(&bin_length, whole.data() + bin, 4);
+  EXPECT_EQ(bin + 8 + bin_length, whole.size());
+  EXPECT_EQ(std::memcmp(whole.data() + bin + 8, mesh.vertices[mesh.faces[0][0]].data(), 12), 0);
+  const std::size_t padding = (4 - png->size() % 4) % 4;
+  EXPECT_EQ(whole.substr(whole.size() - padding - png->size(), png->size()), *png);
 }
 
 }  // namespace
