@@ -319,7 +319,7 @@ Expected<void> internal::PutVrml(const Mesh& mesh, const StageGate& gate, Atomic
   constexpr std::size_t kMaxLine = 4 * internal::kMaxNumberChars;
   file->PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
     for (int k = 0; k < 3; ++k) {
-      p = internal::WriteFixed(p, mesh.vertices[i][k], 4);
+      p = internal::WriteFixedN<4>(p, mesh.vertices[i][k]);
       *p++ = ' ';
     }
     p[-1] = ',';

@@ -99,7 +99,7 @@ Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, 
     *p++ = 'v';
     for (int k = 0; k < 3; ++k) {
       *p++ = ' ';
-      p = WriteFixed(p, mesh.vertices[i][k], kMmDecimals);
+      p = WriteFixedN<kMmDecimals>(p, mesh.vertices[i][k]);
     }
     if (colors) {
       for (int k = 0; k < 3; ++k) {
@@ -116,9 +116,9 @@ Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, 
   if (textured) {
     obj->PutEach(mesh.uvs.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
       std::copy_n("vt ", 3, p);
-      p = WriteFixed(p + 3, mesh.uvs[i].x(), 6);
+      p = WriteFixedN<6>(p + 3, mesh.uvs[i].x());
       *p++ = ' ';
-      p = WriteFixed(p, 1.0f - mesh.uvs[i].y(), 6);
+      p = WriteFixedN<6>(p, 1.0f - mesh.uvs[i].y());
       *p = '\n';
       return p + 1;
     });

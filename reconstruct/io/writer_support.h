@@ -17,6 +17,7 @@
 
 #include "base/atomic_file.h"
 #include "base/error.h"
+#include "reconstruct/io/fixed_text.h"
 #include "reconstruct/mesh.h"
 
 namespace revolve::reconstruct::internal {
@@ -26,12 +27,11 @@ Error BadFile(const std::filesystem::path& path, std::string_view what);
 
 // Numbers as text, written at `out` (room for kMaxNumberChars bytes: they may store a few bytes
 // past their text); they return the text's end.
-inline constexpr std::size_t kMaxNumberChars = 48;
 char* WriteInt(char* out, long long value);
 // `value` rounded to `decimals` (0..9) decimal places, trailing zeros dropped ("12.5", "-3",
 // "0.0001"): several times faster than the shortest round-trip text, exact to half a unit of
 // the last place. Non-finite or huge values: the shortest text that reads back as the same
-// float.
+// float. (fixed_text.h's WriteFixedN<decimals>, inlined, where the count is a constant.)
 char* WriteFixed(char* out, float value, int decimals);
 
 // A text of up to 7 bytes and its length held in one word (the text from the lowest byte, the
