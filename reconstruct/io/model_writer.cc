@@ -180,9 +180,9 @@ Expected<ModelWriter::Output> ModelWriter::WritePng() {
     }
     return output;
   }
-  Expected<std::string> encoded = EncodePng(mesh_.texture);
-  if (!encoded) return std::unexpected(WithContext(encoded.error(), path.string()));
-  png_ = std::move(*encoded);
+  // Encoded by Finish before it declared the mesh done.
+  if (!encoded_png_) return std::unexpected(WithContext(encoded_png_.error(), path.string()));
+  png_ = std::move(*encoded_png_);
   keep.png = &png_;
   if (!Wants("obj")) return output;  // the glTF embeds it; no file of its own
   Expected<std::unique_ptr<AtomicFile>> file = OpenFile(path);
@@ -194,6 +194,12 @@ Expected<ModelWriter::Output> ModelWriter::WritePng() {
 }
 
 Expected<std::vector<fs::path>> ModelWriter::Finish() {
+  // The texture's PNG here, on the caller's thread, before the mesh is declared done: its bands
+  // then run on every core of the caller's pool (oneTBB gives a writer's own thread an arena of
+  // its own, which the pool's threads, busy or asleep, join late: the bands ran on one core).
+  if ((Wants("obj") || Wants("glb")) && mesh_.HasTexture()) {
+    encoded_png_ = EncodePng(mesh_.texture);
+  }
   Reached(MeshStage::kDone);
   for (const std::unique_ptr<Job>& job : jobs_) {
     if (!job->thread.joinable()) job->output = job->run();
