@@ -84,11 +84,16 @@ ModelWriter::ModelWriter(const Mesh& mesh, fs::path dir, std::string basename,
       dir_(std::move(dir)),
       basename_(std::move(basename)),
       formats_(std::move(formats)),
+      encoded_ready_(encoded_promise_.get_future().share()),
       png_ready_(png_promise_.get_future().share()) {}
 
 ModelWriter::~ModelWriter() {
   if (!finished_) {
     gate_.Abandon();
+    if (!encoded_kept_) {
+      encoded_png_ = std::unexpected(internal::AbandonedFile(PathOf("png")));
+      KeepEncoded();
+    }
     // Those without a thread return at their first wait; the PNG's keeps its promise, which
     // the glTF's thread may be waiting for.
     for (const std::unique_ptr<Job>& job : jobs_) {
@@ -155,6 +160,11 @@ Expected<ModelWriter::Output> ModelWriter::WriteFormat(const std::string& format
   return output;
 }
 
+void ModelWriter::KeepEncoded() {
+  encoded_kept_ = true;
+  encoded_promise_.set_value();
+}
+
 const std::string* ModelWriter::WaitForPng() {
   try {
     return png_ready_.get();
@@ -180,7 +190,8 @@ Expected<ModelWriter::Output> ModelWriter::WritePng() {
     }
     return output;
   }
-  // Encoded by Finish before it declared the mesh done.
+  // Encoded by Finish (once the mesh is done, which Reached may have said before).
+  encoded_ready_.wait();
   if (!encoded_png_) return std::unexpected(WithContext(encoded_png_.error(), path.string()));
   png_ = std::move(*encoded_png_);
   keep.png = &png_;
@@ -200,6 +211,7 @@ Expected<std::vector<fs::path>> ModelWriter::Finish() {
   if ((Wants("obj") || Wants("glb")) && mesh_.HasTexture()) {
     encoded_png_ = EncodePng(mesh_.texture);
   }
+  KeepEncoded();
   Reached(MeshStage::kDone);
   for (const std::unique_ptr<Job>& job : jobs_) {
     if (!job->thread.joinable()) job->output = job->run();

@@ -90,9 +90,15 @@ class ModelWriter {
   internal::StageGate gate_;
   bool texture_promised_ = false;  // kUvs was reached
   bool finished_ = false;
-  // The texture's PNG as Finish encodes it, then as the PNG's writer keeps it.
+  // The texture's PNG as Finish encodes it (then the PNG's writer keeps it), and the news that
+  // it is set (kept by Finish, or by the destructor of an abandoned model): the PNG's writer may
+  // be told of kDone by Reached before Finish encodes it.
   Expected<std::string> encoded_png_ =
       MakeError(ErrorCode::kInternal, "the texture was not encoded");
+  std::promise<void> encoded_promise_;
+  std::shared_future<void> encoded_ready_;
+  bool encoded_kept_ = false;
+  void KeepEncoded();
   std::string png_;
   std::promise<const std::string*> png_promise_;
   std::shared_future<const std::string*> png_ready_;

@@ -168,16 +168,24 @@ struct GlbSplit {
 GlbSplit SplitByUv(const Mesh& mesh) {
   GlbSplit out;
   std::vector<int>& source = out.source;
-  out.indices.reserve(mesh.faces.size() * 3);
-  std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
+  out.indices.resize(mesh.faces.size() * 3);
+  // Per uv: its first glTF vertex (-1: none yet) and that one's mesh vertex, side by side (one
+  // load for the common case, a uv used with one vertex only).
+  struct First {
+    int index = -1;
+    int vertex = -1;
+  };
+  std::vector<First> first(mesh.uvs.size());
+  source.reserve(mesh.uvs.size());
+  out.uv_of.reserve(mesh.uvs.size());
   std::unordered_map<std::uint64_t, int> others;
   for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
       const int v = mesh.faces[i][c];
       const int t = mesh.uv_faces[i][c];
-      int& slot = first[t];
-      int index = slot;
-      if (index < 0 || source[index] != v) {
+      First& slot = first[t];
+      int index = slot.index;
+      if (index < 0 || slot.vertex != v) {
         const std::uint64_t key = (std::uint64_t(std::uint32_t(v)) << 32) | std::uint32_t(t);
         if (index >= 0) {
           const auto it = others.find(key);
@@ -187,14 +195,14 @@ GlbSplit SplitByUv(const Mesh& mesh) {
           index = static_cast<int>(source.size());
           source.push_back(v);
           out.uv_of.push_back(t);
-          if (slot < 0) {
-            slot = index;
+          if (slot.index < 0) {
+            slot = First{index, v};
           } else {
             others.emplace(key, index);
           }
         }
       }
-      out.indices.push_back(static_cast<std::uint32_t>(index));
+      out.indices[3 * i + static_cast<std::size_t>(c)] = static_cast<std::uint32_t>(index);
     }
   }
   return out;

@@ -180,6 +180,31 @@ TEST_F(ModelWriterTest, AnAbandonedMeshLeavesNoFile) {
   EXPECT_TRUE(Contents().empty());
 }
 
+TEST_F(ModelWriterTest, TheMeshDoneBeforeFinishOrAbandonedThenIsWrittenOrLeavesNoFile) {
+  // The reconstruction says kDone through the hook before Finish, which encodes the PNG: the
+  // PNG's writer waits for it. Abandoned after kDone, nothing waits for ever and no file stays.
+  const Mesh finished = Grid(40, 6);
+  for (const bool finish : {true, false}) {
+    SCOPED_TRACE(finish ? "finished" : "abandoned");
+    const fs::path dir = dir_ / (finish ? "finished" : "abandoned");
+    fs::create_directories(dir);
+    Mesh mesh;
+    {
+      Expected<std::unique_ptr<ModelWriter>> writer =
+          ModelWriter::Start(mesh, dir, "model", kFormats);
+      ASSERT_TRUE(writer);
+      MakeInStages(finished, MeshStage::kDone, &mesh, writer->get());
+      (*writer)->Reached(MeshStage::kDone);
+      if (finish) {
+        const Expected<std::vector<fs::path>> files = (*writer)->Finish();
+        ASSERT_TRUE(files) << files.error().ToString();
+        EXPECT_EQ(files->size(), 7u);
+      }
+    }
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), finish ? 7 : 0);
+  }
+}
+
 TEST_F(ModelWriterTest, ErrorsNameTheFile) {
   const Mesh mesh = Grid(8, 4);
   // An unknown format: nothing started.
