@@ -141,14 +141,14 @@ Expected<ModelWriter::Output> ModelWriter::WriteFormat(const std::string& format
   } else if (format == "stl") {
     put = internal::PutStl(mesh_, gate_, file->get());
   } else if (format == "wrl") {
-    put = internal::PutVrml(mesh_, gate_, file->get());
+    put = internal::PutVrml(mesh_, gate_, file->get(), &vertex_texts_);
   } else if (format == "glb") {
     put = internal::PutGlb(
         mesh_, gate_, [this] { return WaitForPng(); }, file->get());
   } else {
     Expected<std::unique_ptr<AtomicFile>> mtl = OpenFile(PathOf("mtl"));
     if (!mtl) return std::unexpected(mtl.error());
-    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get());
+    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get(), &vertex_texts_);
     output.files.push_back(std::move(*file));
     file = std::move(*mtl);
   }

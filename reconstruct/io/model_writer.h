@@ -88,7 +88,8 @@ class ModelWriter {
   const std::string basename_;
   const std::vector<std::string> formats_;  // each once, in the order asked
   internal::StageGate gate_;
-  bool texture_promised_ = false;  // kUvs was reached
+  internal::VertexTexts vertex_texts_;  // the VRML's and the OBJ's, made once
+  bool texture_promised_ = false;       // kUvs was reached
   bool finished_ = false;
   // The texture's PNG as Finish encodes it (then the PNG's writer keeps it), and the news that
   // it is set (kept by Finish, or by the destructor of an abandoned model): the PNG's writer may

@@ -31,6 +31,7 @@ using internal::BadFile;
 constexpr const char* kMaterialName = "revolve";
 // Text coordinates: 0.1 um in millimetres, far below any scan's accuracy.
 constexpr int kMmDecimals = 4;
+static_assert(kMmDecimals == 4, "the OBJ's vertices may be VertexTexts, which have 4 decimals");
 
 Eigen::Vector3f FaceNormal(const Mesh& mesh, const Eigen::Vector3i& f) {
   const Eigen::Vector3f& a = mesh.vertices[f[0]];
@@ -80,7 +81,8 @@ std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
   return normals;
 }
 
-Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl) {
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl,
+                      VertexTexts* texts) {
   const fs::path& path = obj->path();
   if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(path));
   const fs::path png_path = fs::path(path).replace_extension(".png");
@@ -95,11 +97,17 @@ Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, 
   constexpr std::size_t kMaxLine = 8 * kMaxNumberChars;
   if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(path));
   const bool colors = mesh.HasColors();
+  const VertexTexts* const points = texts != nullptr ? &texts->Of(mesh) : nullptr;
   obj->PutEach(mesh.vertices.size(), kMaxLine, [&](char* p, std::size_t i) {
     *p++ = 'v';
-    for (int k = 0; k < 3; ++k) {
+    if (points != nullptr) {
       *p++ = ' ';
-      p = WriteFixedN<kMmDecimals>(p, mesh.vertices[i][k]);
+      p = points->Write(p, i);
+    } else {
+      for (int k = 0; k < 3; ++k) {
+        *p++ = ' ';
+        p = WriteFixedN<kMmDecimals>(p, mesh.vertices[i][k]);
+      }
     }
     if (colors) {
       for (int k = 0; k < 3; ++k) {

@@ -92,6 +92,28 @@ IndexTexts::IndexTexts(int first, std::size_t count) : first_(first) {
   }
 }
 
+const VertexTexts& VertexTexts::Of(const Mesh& mesh) {
+  std::call_once(made_, [&] {
+    const std::size_t n = mesh.vertices.size();
+    start_.resize(n + 1);
+    text_.resize(32 * n + kMaxText + kCopyBytes);  // about what 4-decimal millimetres take
+    std::size_t at = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (text_.size() - at < kMaxText + kCopyBytes) text_.resize(2 * text_.size());
+      start_[i] = at;
+      char* p = text_.data() + at;
+      for (int k = 0; k < 3; ++k) {
+        p = WriteFixedN<4>(p, mesh.vertices[i][k]);
+        *p++ = ' ';
+      }
+      at = static_cast<std::size_t>(p - 1 - text_.data());  // no space after the last
+    }
+    start_[n] = at;
+    text_.resize(at + kCopyBytes);
+  });
+  return *this;
+}
+
 Error BadFile(const std::filesystem::path& path, std::string_view what) {
   return Error{ErrorCode::kBadInput, fmt::format("{}: {}", path.string(), what)};
 }

@@ -110,11 +110,41 @@ using PngSource = std::function<const std::string*()>;
 // incomplete); internal when `png` gives null.
 Expected<void> PutPly(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
 Expected<void> PutStl(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
-// Plain VRML only (not the meridian's view-dependent one).
-Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
+// The vertices' coordinates as text, "x y z" in millimetres to 4 decimals (WriteFixedN<4>), made
+// once for the writers that both write them (the VRML's points, the OBJ's vertices): by the first
+// that asks, once the surface is final.
+class VertexTexts {
+ public:
+  // The texts of `mesh`'s vertices (made on the first call; `mesh` must be the same each time).
+  // Thread-safe.
+  const VertexTexts& Of(const Mesh& mesh);
+  // Writes vertex i's text at `out` (stores kCopyBytes; the text is at most kMaxText) and returns
+  // its end.
+  static constexpr std::size_t kMaxText = 3 * kMaxNumberChars;
+  char* Write(char* out, std::size_t i) const {
+    std::memcpy(out, text_.data() + start_[i], kCopyBytes);
+    if (start_[i + 1] - start_[i] > kCopyBytes) {
+      std::memcpy(out, text_.data() + start_[i], start_[i + 1] - start_[i]);
+    }
+    return out + (start_[i + 1] - start_[i]);
+  }
+
+ private:
+  static constexpr std::size_t kCopyBytes = 32;
+  std::once_flag made_;
+  std::string text_;  // kCopyBytes of slack at the end
+  std::vector<std::size_t> start_;
+};
+
+// Plain VRML only (not the meridian's view-dependent one). `texts` (may be null): the points'
+// texts shared with the OBJ's writer.
+Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file,
+                       VertexTexts* texts = nullptr);
 // The .obj into `obj` and its material library into `mtl` (both opened); the PNG the .mtl names
 // is the caller's to write.
-Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl);
+// `texts` (may be null): the vertices' texts shared with the VRML's writer.
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl,
+                      VertexTexts* texts = nullptr);
 // Textured, its bulk is written before the PNG is had, where it lies if the PNG is
 // `png_size_guess` bytes (the bytes are the same for any guess; a right one writes the bulk once,
 // while the PNG is being encoded).

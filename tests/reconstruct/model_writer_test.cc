@@ -8,6 +8,7 @@
 #include <csignal>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
@@ -202,6 +203,32 @@ TEST_F(ModelWriterTest, TheMeshDoneBeforeFinishOrAbandonedThenIsWrittenOrLeavesN
       }
     }
     EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), finish ? 7 : 0);
+  }
+}
+
+TEST_F(ModelWriterTest, SharedVertexTextsAreTheTextsFormattedInPlace) {
+  // The model writer formats the vertices' coordinates once for the VRML and the OBJ; WriteVrml
+  // and WriteObj format them in place. Coordinates of every length (long ones past the 32 bytes
+  // copied at once, huge and non-finite ones in their shortest form) read the same.
+  Mesh mesh = Grid(12, 8);
+  mesh.texture = cv::Mat();
+  mesh.uvs.clear();
+  mesh.uv_faces.clear();
+  mesh.vertices[1] = Eigen::Vector3f(-1234.56789f, -9876.54321f, -5555.55555f);
+  mesh.vertices[2] = Eigen::Vector3f(1e12f, -3e15f, 7.25e18f);
+  mesh.vertices[3] = Eigen::Vector3f(std::numeric_limits<float>::infinity(), -0.0f, 1e-7f);
+  mesh.vertices[4] = Eigen::Vector3f(-123456.79f, -234567.89f, -345678.91f);  // 38 characters
+  ASSERT_TRUE(WriteModel(mesh, dir_, "model", {"obj", "wrl"}));
+  fs::create_directories(dir_ / "apart");
+  ASSERT_TRUE(WriteObj(mesh, dir_ / "apart" / "model.obj"));
+  ASSERT_TRUE(WriteVrml(mesh, dir_ / "apart" / "model.wrl"));
+  for (const char* name : {"model.obj", "model.wrl"}) {
+    std::ifstream a(dir_ / name, std::ios::binary);
+    std::ifstream b(dir_ / "apart" / name, std::ios::binary);
+    const std::string a_bytes(std::istreambuf_iterator<char>(a), std::istreambuf_iterator<char>{});
+    const std::string b_bytes(std::istreambuf_iterator<char>(b), std::istreambuf_iterator<char>{});
+    EXPECT_FALSE(a_bytes.empty());
+    EXPECT_TRUE(a_bytes == b_bytes) << name;
   }
 }
 
