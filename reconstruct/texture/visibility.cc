@@ -410,7 +410,8 @@ class ViewSweep {
         __builtin_prefetch(ahead);
         __builtin_prefetch(ahead + sizeof(Surface::FacePoint) - 1);
       }
-      const Surface::FacePoint& f = s.face_point[static_cast<std::size_t>(entries[j] / kCandidates)];
+      const Surface::FacePoint& f =
+          s.face_point[static_cast<std::size_t>(entries[j] / kCandidates)];
       cx_[j] = f.x;
       cy_[j] = f.y;
       cz_[j] = f.z;
