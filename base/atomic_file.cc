@@ -77,6 +77,75 @@ void AtomicFile::Append(std::string_view bytes) {
   }
 }
 
+void AtomicFile::WriteAt(std::size_t offset, std::string_view bytes) {
+  WriteAt(offset, bytes.size(), [bytes](char* out, std::size_t from, std::size_t n) {
+    std::memcpy(out, bytes.data() + from, n);
+  });
+}
+
+void AtomicFile::WriteAt(std::size_t offset, std::size_t size, const FillBytes& fill) {
+  // The whole blocks straight to the disk, made in the buffer (when no appended bytes wait in
+  // it), as Flush writes them; the partial blocks at the edges through the page cache.
+  const std::size_t first = std::min((offset + kBlock - 1) / kBlock * kBlock, offset + size);
+  const std::size_t last = std::max((offset + size) / kBlock * kBlock, first);
+  const bool direct = direct_ && end_ == 0 && first < last;
+  // The edges (or all of it, through the page cache), a buffer at a time.
+  std::string edge;
+  const auto cached = [&](std::size_t from, std::size_t to) {
+    for (std::size_t at = from; at < to && write_errno_ == 0;) {
+      const std::size_t n = std::min(kBufferSize, to - at);
+      edge.resize(n);
+      fill(edge.data(), at - offset, n);
+      PutAt(edge, at, /*cached=*/true);
+      at += n;
+    }
+  };
+  if (!direct) {
+    cached(offset, offset + size);
+    if (write_errno_ == 0 && !direct_ && size > 0) {
+      // Best effort: without it the bytes are written back at Sync's fsync.
+      (void)::sync_file_range(fd_.get(), static_cast<off_t>(offset), static_cast<off_t>(size),
+                              SYNC_FILE_RANGE_WRITE);
+    }
+    return;
+  }
+  for (std::size_t at = first; at < last && write_errno_ == 0;) {
+    const std::size_t n = std::min(kBufferSize, last - at);
+    fill(buffer_.get(), at - offset, n);
+    PutAt(std::string_view(buffer_.get(), n), at);
+    at += n;
+  }
+  cached(offset, first);
+  cached(last, offset + size);
+}
+
+void AtomicFile::PutAt(std::string_view bytes, std::size_t offset, bool cached) {
+  if (bytes.empty()) return;
+  // A direct file's partial blocks: O_DIRECT off for them alone.
+  const bool toggle = cached && direct_;
+  const int flags = toggle ? ::fcntl(fd_.get(), F_GETFL) : 0;
+  if (toggle && (flags < 0 || ::fcntl(fd_.get(), F_SETFL, flags & ~O_DIRECT) != 0)) {
+    if (write_errno_ == 0) write_errno_ = errno;
+    return;
+  }
+  std::size_t done = 0;
+  while (write_errno_ == 0 && done < bytes.size()) {
+    const ssize_t n = ::pwrite(fd_.get(), bytes.data() + done, bytes.size() - done,
+                               static_cast<off_t>(offset + done));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      if (errno == EINVAL && direct_ && !cached) {
+        StopDirect();  // direct I/O refused: again through the page cache
+        continue;
+      }
+      write_errno_ = errno;
+    } else {
+      done += static_cast<std::size_t>(n);
+    }
+  }
+  if (toggle && ::fcntl(fd_.get(), F_SETFL, flags) != 0 && write_errno_ == 0) write_errno_ = errno;
+}
+
 Expected<void> AtomicFile::Commit() {
   if (Expected<void> synced = Sync(); !synced) return synced;
   if (Expected<void> published = Publish(); !published) return published;

@@ -60,6 +60,16 @@ class AtomicFile {
     }
   }
   void Append(std::string_view bytes);
+  // Writes `bytes` at byte `offset` of the file, apart from the appended bytes (which go on at
+  // their own end; the caller keeps the two from overlapping): for a file whose bulk is known
+  // before its head (the glTF's buffer before its JSON). Whole blocks go straight to the disk
+  // where the appends do (and no appended bytes wait in the buffer), the rest through the page
+  // cache. Errors are reported by Sync, as the appends' are.
+  void WriteAt(std::size_t offset, std::string_view bytes);
+  // The same for `size` bytes made as they are written: fill(out, from, n) writes bytes
+  // [from, from + n) of them at `out` (a buffer's worth at a time; any range may be asked again).
+  using FillBytes = std::function<void(char* out, std::size_t from, std::size_t n)>;
+  void WriteAt(std::size_t offset, std::size_t size, const FillBytes& fill);
   template <class T>
   void AppendRaw(const T& value) {
     Append(std::string_view(reinterpret_cast<const char*>(&value), sizeof(T)));
@@ -91,6 +101,9 @@ class AtomicFile {
   // Writes all of `bytes` at the file's end (records the first error). A direct write the file
   // system refuses turns O_DIRECT off and is written again.
   void WriteAll(std::string_view bytes);
+  // pwrite of all of `bytes` at `offset` (records the first error); `cached`: through the page
+  // cache even when the file is direct.
+  void PutAt(std::string_view bytes, std::size_t offset, bool cached = false);
   // Turns O_DIRECT off: what follows goes through the page cache.
   void StopDirect();
 

@@ -292,7 +292,8 @@ Expected<void> internal::PutPly(const Mesh& mesh, const StageGate& gate, AtomicF
   return {};
 }
 
-Expected<void> internal::PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file) {
+Expected<void> internal::PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file,
+                                 VertexTexts* texts) {
   if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(file->path()));
   std::string text =
       "#VRML V2.0 utf8\n"
@@ -317,15 +318,24 @@ Expected<void> internal::PutVrml(const Mesh& mesh, const StageGate& gate, Atomic
   // One point, colour or triangle per line, not indented: the lists are most of the file->
   file->Append(text);
   constexpr std::size_t kMaxLine = 4 * internal::kMaxNumberChars;
-  file->PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
-    for (int k = 0; k < 3; ++k) {
-      p = internal::WriteFixed(p, mesh.vertices[i][k], 4);
-      *p++ = ' ';
-    }
-    p[-1] = ',';
-    *p = '\n';
-    return p + 1;
-  });
+  if (texts != nullptr) {
+    const VertexTexts& points = texts->Of(mesh);
+    file->PutEach(mesh.vertices.size(), kMaxLine, [&points](char* p, std::size_t i) {
+      p = points.Write(p, i);
+      std::copy_n(",\n", 2, p);
+      return p + 2;
+    });
+  } else {
+    file->PutEach(mesh.vertices.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
+      for (int k = 0; k < 3; ++k) {
+        p = internal::WriteFixedN<4>(p, mesh.vertices[i][k]);
+        *p++ = ' ';
+      }
+      p[-1] = ',';
+      *p = '\n';
+      return p + 1;
+    });
+  }
   file->Append("      ]\n    }\n");
   if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(file->path()));
   if (mesh.HasColors()) {
@@ -377,7 +387,10 @@ Expected<void> WritePly(const Mesh& mesh, const fs::path& path) {
 }
 
 Expected<void> WriteVrml(const Mesh& mesh, const fs::path& path) {
-  return WriteFinished(mesh, path, internal::PutVrml);
+  return WriteFinished(mesh, path,
+                       [](const Mesh& m, const internal::StageGate& gate, AtomicFile* file) {
+                         return internal::PutVrml(m, gate, file);
+                       });
 }
 
 bool IsModelFormat(std::string_view format) {

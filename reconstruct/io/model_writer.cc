@@ -84,11 +84,16 @@ ModelWriter::ModelWriter(const Mesh& mesh, fs::path dir, std::string basename,
       dir_(std::move(dir)),
       basename_(std::move(basename)),
       formats_(std::move(formats)),
+      encoded_ready_(encoded_promise_.get_future().share()),
       png_ready_(png_promise_.get_future().share()) {}
 
 ModelWriter::~ModelWriter() {
   if (!finished_) {
     gate_.Abandon();
+    if (!encoded_kept_) {
+      encoded_png_ = std::unexpected(internal::AbandonedFile(PathOf("png")));
+      KeepEncoded();
+    }
     // Those without a thread return at their first wait; the PNG's keeps its promise, which
     // the glTF's thread may be waiting for.
     for (const std::unique_ptr<Job>& job : jobs_) {
@@ -136,14 +141,14 @@ Expected<ModelWriter::Output> ModelWriter::WriteFormat(const std::string& format
   } else if (format == "stl") {
     put = internal::PutStl(mesh_, gate_, file->get());
   } else if (format == "wrl") {
-    put = internal::PutVrml(mesh_, gate_, file->get());
+    put = internal::PutVrml(mesh_, gate_, file->get(), &vertex_texts_);
   } else if (format == "glb") {
     put = internal::PutGlb(
         mesh_, gate_, [this] { return WaitForPng(); }, file->get());
   } else {
     Expected<std::unique_ptr<AtomicFile>> mtl = OpenFile(PathOf("mtl"));
     if (!mtl) return std::unexpected(mtl.error());
-    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get());
+    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get(), &vertex_texts_);
     output.files.push_back(std::move(*file));
     file = std::move(*mtl);
   }
@@ -153,6 +158,11 @@ Expected<ModelWriter::Output> ModelWriter::WriteFormat(const std::string& format
     if (Expected<void> synced = f->Sync(); !synced) return std::unexpected(synced.error());
   }
   return output;
+}
+
+void ModelWriter::KeepEncoded() {
+  encoded_kept_ = true;
+  encoded_promise_.set_value();
 }
 
 const std::string* ModelWriter::WaitForPng() {
@@ -180,9 +190,10 @@ Expected<ModelWriter::Output> ModelWriter::WritePng() {
     }
     return output;
   }
-  Expected<std::string> encoded = EncodePng(mesh_.texture);
-  if (!encoded) return std::unexpected(WithContext(encoded.error(), path.string()));
-  png_ = std::move(*encoded);
+  // Encoded by Finish (once the mesh is done, which Reached may have said before).
+  encoded_ready_.wait();
+  if (!encoded_png_) return std::unexpected(WithContext(encoded_png_.error(), path.string()));
+  png_ = std::move(*encoded_png_);
   keep.png = &png_;
   if (!Wants("obj")) return output;  // the glTF embeds it; no file of its own
   Expected<std::unique_ptr<AtomicFile>> file = OpenFile(path);
@@ -194,6 +205,13 @@ Expected<ModelWriter::Output> ModelWriter::WritePng() {
 }
 
 Expected<std::vector<fs::path>> ModelWriter::Finish() {
+  // The texture's PNG here, on the caller's thread, before the mesh is declared done: its bands
+  // then run on every core of the caller's pool (oneTBB gives a writer's own thread an arena of
+  // its own, which the pool's threads, busy or asleep, join late: the bands ran on one core).
+  if ((Wants("obj") || Wants("glb")) && mesh_.HasTexture()) {
+    encoded_png_ = EncodePng(mesh_.texture);
+  }
+  KeepEncoded();
   Reached(MeshStage::kDone);
   for (const std::unique_ptr<Job>& job : jobs_) {
     if (!job->thread.joinable()) job->output = job->run();

@@ -8,7 +8,8 @@
 //
 // What each file waits for: the STL for the surface; the VRML writes its points at the surface
 // and the rest at the colours; the PLY at the colours; the OBJ its vertices at the colours and the
-// rest at the uvs; the glTF the uvs and the texture's PNG, which is encoded once the mesh is done.
+// rest at the uvs; the glTF the uvs and the texture's PNG, which Finish encodes (on its caller's
+// thread and pool) once the mesh is done.
 // The bytes are WriteModel's (mesh_io.h), which is this writer given a finished mesh.
 #pragma once
 
@@ -54,7 +55,8 @@ class ModelWriter {
     return [this](MeshStage stage) { Reached(stage); };
   }
 
-  // The mesh is done (kDone, whether or not Reached said so): waits for every file, then puts
+  // The mesh is done (kDone, whether or not Reached said so): encodes the texture's PNG on this
+  // thread (its bands on this thread's oneTBB pool), waits for every file, then puts
   // them in place together: each written and fsynced under its temporary name, then renamed over
   // its path in the order returned, then the folder fsynced once. Returns the paths written, in
   // the order of `formats` (.obj, .mtl, .png for "obj"). Errors: io (or aborted, internal) naming
@@ -76,8 +78,8 @@ class ModelWriter {
   std::filesystem::path PathOf(std::string_view extension) const;
   bool Wants(std::string_view format) const;
   Expected<Output> WriteFormat(const std::string& format);
-  // The texture's PNG: encoded once the mesh is done, handed to the glTF writer, written as the
-  // .png the .mtl names when "obj" is asked for.
+  // The texture's PNG: encoded by Finish (on its caller's thread and pool), handed to the glTF
+  // writer, written as the .png the .mtl names when "obj" is asked for.
   Expected<Output> WritePng();
   const std::string* WaitForPng();
 
@@ -86,8 +88,18 @@ class ModelWriter {
   const std::string basename_;
   const std::vector<std::string> formats_;  // each once, in the order asked
   internal::StageGate gate_;
-  bool texture_promised_ = false;  // kUvs was reached
+  internal::VertexTexts vertex_texts_;  // the VRML's and the OBJ's, made once
+  bool texture_promised_ = false;       // kUvs was reached
   bool finished_ = false;
+  // The texture's PNG as Finish encodes it (then the PNG's writer keeps it), and the news that
+  // it is set (kept by Finish, or by the destructor of an abandoned model): the PNG's writer may
+  // be told of kDone by Reached before Finish encodes it.
+  Expected<std::string> encoded_png_ =
+      MakeError(ErrorCode::kInternal, "the texture was not encoded");
+  std::promise<void> encoded_promise_;
+  std::shared_future<void> encoded_ready_;
+  bool encoded_kept_ = false;
+  void KeepEncoded();
   std::string png_;
   std::promise<const std::string*> png_promise_;
   std::shared_future<const std::string*> png_ready_;

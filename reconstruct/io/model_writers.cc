@@ -31,6 +31,7 @@ using internal::BadFile;
 constexpr const char* kMaterialName = "revolve";
 // Text coordinates: 0.1 um in millimetres, far below any scan's accuracy.
 constexpr int kMmDecimals = 4;
+static_assert(kMmDecimals == 4, "the OBJ's vertices may be VertexTexts, which have 4 decimals");
 
 Eigen::Vector3f FaceNormal(const Mesh& mesh, const Eigen::Vector3i& f) {
   const Eigen::Vector3f& a = mesh.vertices[f[0]];
@@ -80,7 +81,8 @@ std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh) {
   return normals;
 }
 
-Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl) {
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl,
+                      VertexTexts* texts) {
   const fs::path& path = obj->path();
   if (!gate.Wait(MeshStage::kSurface)) return std::unexpected(AbandonedFile(path));
   const fs::path png_path = fs::path(path).replace_extension(".png");
@@ -95,11 +97,17 @@ Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, 
   constexpr std::size_t kMaxLine = 8 * kMaxNumberChars;
   if (!gate.Wait(MeshStage::kColors)) return std::unexpected(AbandonedFile(path));
   const bool colors = mesh.HasColors();
+  const VertexTexts* const points = texts != nullptr ? &texts->Of(mesh) : nullptr;
   obj->PutEach(mesh.vertices.size(), kMaxLine, [&](char* p, std::size_t i) {
     *p++ = 'v';
-    for (int k = 0; k < 3; ++k) {
+    if (points != nullptr) {
       *p++ = ' ';
-      p = WriteFixed(p, mesh.vertices[i][k], kMmDecimals);
+      p = points->Write(p, i);
+    } else {
+      for (int k = 0; k < 3; ++k) {
+        *p++ = ' ';
+        p = WriteFixedN<kMmDecimals>(p, mesh.vertices[i][k]);
+      }
     }
     if (colors) {
       for (int k = 0; k < 3; ++k) {
@@ -116,9 +124,9 @@ Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, 
   if (textured) {
     obj->PutEach(mesh.uvs.size(), kMaxLine, [&mesh](char* p, std::size_t i) {
       std::copy_n("vt ", 3, p);
-      p = WriteFixed(p + 3, mesh.uvs[i].x(), 6);
+      p = WriteFixedN<6>(p + 3, mesh.uvs[i].x());
       *p++ = ' ';
-      p = WriteFixed(p, 1.0f - mesh.uvs[i].y(), 6);
+      p = WriteFixedN<6>(p, 1.0f - mesh.uvs[i].y());
       *p = '\n';
       return p + 1;
     });
@@ -168,16 +176,24 @@ struct GlbSplit {
 GlbSplit SplitByUv(const Mesh& mesh) {
   GlbSplit out;
   std::vector<int>& source = out.source;
-  out.indices.reserve(mesh.faces.size() * 3);
-  std::vector<int> first(mesh.uvs.size(), -1);  // uv -> its first glTF vertex
+  out.indices.resize(mesh.faces.size() * 3);
+  // Per uv: its first glTF vertex (-1: none yet) and that one's mesh vertex, side by side (one
+  // load for the common case, a uv used with one vertex only).
+  struct First {
+    int index = -1;
+    int vertex = -1;
+  };
+  std::vector<First> first(mesh.uvs.size());
+  source.reserve(mesh.uvs.size());
+  out.uv_of.reserve(mesh.uvs.size());
   std::unordered_map<std::uint64_t, int> others;
   for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
       const int v = mesh.faces[i][c];
       const int t = mesh.uv_faces[i][c];
-      int& slot = first[t];
-      int index = slot;
-      if (index < 0 || source[index] != v) {
+      First& slot = first[t];
+      int index = slot.index;
+      if (index < 0 || slot.vertex != v) {
         const std::uint64_t key = (std::uint64_t(std::uint32_t(v)) << 32) | std::uint32_t(t);
         if (index >= 0) {
           const auto it = others.find(key);
@@ -187,14 +203,14 @@ GlbSplit SplitByUv(const Mesh& mesh) {
           index = static_cast<int>(source.size());
           source.push_back(v);
           out.uv_of.push_back(t);
-          if (slot < 0) {
-            slot = index;
+          if (slot.index < 0) {
+            slot = First{index, v};
           } else {
             others.emplace(key, index);
           }
         }
       }
-      out.indices.push_back(static_cast<std::uint32_t>(index));
+      out.indices[3 * i + static_cast<std::size_t>(c)] = static_cast<std::uint32_t>(index);
     }
   }
   return out;
@@ -322,10 +338,122 @@ std::string GlbHead(const std::string& json, std::size_t bin_size) {
   return header;
 }
 
+// Bytes [from, from + n) of `count` items of kItemBytes each, item i made by put(i, out), at
+// `out` (items cut by the range's ends made aside).
+template <std::size_t kItemBytes, class Put>
+void ItemBytes(std::size_t from, std::size_t n, const Put& put, char* out) {
+  std::size_t i = from / kItemBytes;
+  std::size_t skip = from % kItemBytes;
+  while (n > 0) {
+    if (skip == 0 && n >= kItemBytes) {
+      put(i++, out);
+      out += kItemBytes;
+      n -= kItemBytes;
+      continue;
+    }
+    char item[kItemBytes];
+    put(i++, item);
+    const std::size_t take = std::min(kItemBytes - skip, n);
+    std::memcpy(out, item + skip, take);
+    out += take;
+    n -= take;
+    skip = 0;
+  }
+}
+
+// The textured glTF's binary chunk but the PNG, as AtomicFile::FillBytes: its vertices'
+// positions, normals and uvs, then the indices (each view's length a multiple of 4: no padding
+// between them).
+class GlbBulk {
+ public:
+  GlbBulk(const Mesh& mesh, const GlbSplit& split, const std::vector<Eigen::Vector3f>& normals)
+      : mesh_(mesh), split_(split), normals_(normals), n_(split.source.size()) {}
+  std::size_t size() const { return n_ * 32 + split_.indices.size() * 4; }
+  void operator()(char* out, std::size_t from, std::size_t n) const {
+    // Each part's share of [from, from + n): fn(offset in the part, bytes, where they go).
+    const auto part = [&](std::size_t begin, std::size_t length, const auto& fn) {
+      const std::size_t lo = std::max(from, begin);
+      const std::size_t hi = std::min(from + n, begin + length);
+      if (lo < hi) fn(lo - begin, hi - lo, out + (lo - from));
+    };
+    part(0, n_ * 12, [this](std::size_t at, std::size_t bytes, char* to) {
+      ItemBytes<12>(
+          at, bytes,
+          [this](std::size_t i, char* p) {
+            std::memcpy(p, mesh_.vertices[split_.source[i]].data(), 12);
+          },
+          to);
+    });
+    part(n_ * 12, n_ * 12, [this](std::size_t at, std::size_t bytes, char* to) {
+      ItemBytes<12>(
+          at, bytes,
+          [this](std::size_t i, char* p) { std::memcpy(p, normals_[split_.source[i]].data(), 12); },
+          to);
+    });
+    part(n_ * 24, n_ * 8, [this](std::size_t at, std::size_t bytes, char* to) {
+      ItemBytes<8>(
+          at, bytes,
+          [this](std::size_t i, char* p) { std::memcpy(p, mesh_.uvs[split_.uv_of[i]].data(), 8); },
+          to);
+    });
+    part(n_ * 32, split_.indices.size() * 4, [this](std::size_t at, std::size_t bytes, char* to) {
+      std::memcpy(to, reinterpret_cast<const char*>(split_.indices.data()) + at, bytes);
+    });
+  }
+
+ private:
+  const Mesh& mesh_;
+  const GlbSplit& split_;
+  const std::vector<Eigen::Vector3f>& normals_;
+  std::size_t n_;
+};
+
+// The textured glTF: the PNG may still be being encoded, and the head (the JSON) holds its size,
+// but the head's length depends only on how many digits that size and the buffer's have. So the
+// bulk (GlbBulk) is written first (AtomicFile::WriteAt) where it lies if the PNG is
+// `png_size_guess` bytes, and on its way to the disk while the PNG is made; then the head and the
+// PNG. Where the guess put it elsewhere, the bulk is written again at its place (the file's
+// bytes are the same either way: a head shorter than guessed leaves bytes of the first bulk past
+// the second only within the few bytes of the difference, which the PNG, at least 57 bytes,
+// covers).
+Expected<void> PutTexturedGlb(const Mesh& mesh, const GlbSplit& split,
+                              const std::vector<Eigen::Vector3f>& normals,
+                              const PngSource& png_source, std::size_t png_size_guess,
+                              AtomicFile* file) {
+  const std::size_t n = split.source.size();
+  const std::size_t index_count = 3 * mesh.faces.size();
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f hi = -lo;
+  for (const int v : split.source) {
+    lo = lo.cwiseMin(mesh.vertices[v]);
+    hi = hi.cwiseMax(mesh.vertices[v]);
+  }
+  const auto head_for = [&](std::size_t png_size) {
+    const GlbLayout layout(n, index_count, true, false, png_size);
+    return GlbHead(GlbJson(mesh, layout, n, index_count, lo, hi, true, false), layout.bin_size);
+  };
+  const GlbBulk bulk(mesh, split, normals);
+  const std::size_t bulk_size = bulk.size();
+  const std::size_t guessed_at = head_for(png_size_guess).size();
+  file->WriteAt(guessed_at, bulk_size, bulk);
+  const std::string* png = png_source();
+  if (png == nullptr) {
+    return MakeError(ErrorCode::kInternal,
+                     fmt::format("{}: the texture could not be encoded", file->path().string()));
+  }
+  const std::string head = head_for(png->size());
+  file->WriteAt(0, head);
+  if (head.size() != guessed_at) file->WriteAt(head.size(), bulk_size, bulk);
+  file->WriteAt(head.size() + bulk_size, *png);
+  file->WriteAt(head.size() + bulk_size + png->size(),
+                std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
+  return {};
+}
+
 }  // namespace
 
 Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& png_source,
-                      AtomicFile* file) {
+                      AtomicFile* file, std::size_t png_size_guess) {
   const fs::path& path = file->path();
   // The uvs (or the news that there are none), and with them the normals and colours.
   const std::optional<MeshStage> reached = gate.Wait(MeshStage::kUvs);
@@ -337,57 +465,23 @@ Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& 
   if (!mesh.HasNormals()) computed_normals = VertexNormals(mesh);
   const std::vector<Eigen::Vector3f>& vertex_normals =
       mesh.HasNormals() ? mesh.normals : computed_normals;
+  if (textured) {
+    return PutTexturedGlb(mesh, SplitByUv(mesh), vertex_normals, png_source, png_size_guess, file);
+  }
 
-  // The vertices as glTF sees them: split by uv where textured, else the mesh's own (written
-  // straight from the mesh's arrays).
-  const GlbSplit split = textured ? SplitByUv(mesh) : GlbSplit{};
-  const std::vector<int>& source = split.source;
-  const std::size_t n = textured ? source.size() : mesh.vertices.size();
+  // The mesh's own vertices, written straight from its arrays.
+  const std::size_t n = mesh.vertices.size();
   const std::size_t index_count = 3 * mesh.faces.size();
-
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
   Eigen::Vector3f hi = -lo;
-  auto include = [&lo, &hi](const Eigen::Vector3f& p) {
+  for (const Eigen::Vector3f& p : mesh.vertices) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
-  };
-  if (textured) {
-    for (int v : source) {
-      include(mesh.vertices[v]);
-    }
-  } else {
-    std::for_each(mesh.vertices.begin(), mesh.vertices.end(), include);
   }
-  const std::string* png = nullptr;
-  if (textured) {
-    png = png_source();
-    if (png == nullptr) {
-      return MakeError(ErrorCode::kInternal,
-                       fmt::format("{}: the texture could not be encoded", path.string()));
-    }
-  }
-  const GlbLayout layout(n, index_count, textured, colors, textured ? png->size() : 0);
-  const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, textured, colors);
-
-  const bool has_bin = layout.bin_size > 0;
+  const GlbLayout layout(n, index_count, false, colors, 0);
+  const std::string json = GlbJson(mesh, layout, n, index_count, lo, hi, false, colors);
   file->Append(GlbHead(json, layout.bin_size));
-  if (has_bin && textured) {
-    file->PutEach(n, 12, [&](char* p, std::size_t i) {
-      std::memcpy(p, mesh.vertices[source[i]].data(), 12);
-      return p + 12;
-    });
-    file->PutEach(n, 12, [&](char* p, std::size_t i) {
-      std::memcpy(p, vertex_normals[source[i]].data(), 12);
-      return p + 12;
-    });
-    file->PutEach(n, 8, [&](char* p, std::size_t i) {
-      std::memcpy(p, mesh.uvs[split.uv_of[i]].data(), 8);
-      return p + 8;
-    });
-    file->Append(BytesOf(split.indices));
-    file->Append(*png);
-    file->Append(std::string_view("\0\0\0", (4 - png->size() % 4) % 4));
-  } else if (has_bin) {
+  if (layout.bin_size > 0) {
     file->Append(BytesOf(mesh.vertices));
     file->Append(BytesOf(vertex_normals));
     if (colors) {

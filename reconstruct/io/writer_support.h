@@ -17,6 +17,7 @@
 
 #include "base/atomic_file.h"
 #include "base/error.h"
+#include "reconstruct/io/fixed_text.h"
 #include "reconstruct/mesh.h"
 
 namespace revolve::reconstruct::internal {
@@ -26,12 +27,11 @@ Error BadFile(const std::filesystem::path& path, std::string_view what);
 
 // Numbers as text, written at `out` (room for kMaxNumberChars bytes: they may store a few bytes
 // past their text); they return the text's end.
-inline constexpr std::size_t kMaxNumberChars = 48;
 char* WriteInt(char* out, long long value);
 // `value` rounded to `decimals` (0..9) decimal places, trailing zeros dropped ("12.5", "-3",
 // "0.0001"): several times faster than the shortest round-trip text, exact to half a unit of
 // the last place. Non-finite or huge values: the shortest text that reads back as the same
-// float.
+// float. (fixed_text.h's WriteFixedN<decimals>, inlined, where the count is a constant.)
 char* WriteFixed(char* out, float value, int decimals);
 
 // A text of up to 7 bytes and its length held in one word (the text from the lowest byte, the
@@ -110,13 +110,47 @@ using PngSource = std::function<const std::string*()>;
 // incomplete); internal when `png` gives null.
 Expected<void> PutPly(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
 Expected<void> PutStl(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
-// Plain VRML only (not the meridian's view-dependent one).
-Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file);
+// The vertices' coordinates as text, "x y z" in millimetres to 4 decimals (WriteFixedN<4>), made
+// once for the writers that both write them (the VRML's points, the OBJ's vertices): by the first
+// that asks, once the surface is final.
+class VertexTexts {
+ public:
+  // The texts of `mesh`'s vertices (made on the first call; `mesh` must be the same each time).
+  // Thread-safe.
+  const VertexTexts& Of(const Mesh& mesh);
+  // Writes vertex i's text at `out` (stores kCopyBytes; the text is at most kMaxText) and returns
+  // its end.
+  static constexpr std::size_t kMaxText = 3 * kMaxNumberChars;
+  char* Write(char* out, std::size_t i) const {
+    std::memcpy(out, text_.data() + start_[i], kCopyBytes);
+    if (start_[i + 1] - start_[i] > kCopyBytes) {
+      std::memcpy(out, text_.data() + start_[i], start_[i + 1] - start_[i]);
+    }
+    return out + (start_[i + 1] - start_[i]);
+  }
+
+ private:
+  static constexpr std::size_t kCopyBytes = 32;
+  std::once_flag made_;
+  std::string text_;  // kCopyBytes of slack at the end
+  std::vector<std::size_t> start_;
+};
+
+// Plain VRML only (not the meridian's view-dependent one). `texts` (may be null): the points'
+// texts shared with the OBJ's writer.
+Expected<void> PutVrml(const Mesh& mesh, const StageGate& gate, AtomicFile* file,
+                       VertexTexts* texts = nullptr);
 // The .obj into `obj` and its material library into `mtl` (both opened); the PNG the .mtl names
 // is the caller's to write.
-Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl);
+// `texts` (may be null): the vertices' texts shared with the VRML's writer.
+Expected<void> PutObj(const Mesh& mesh, const StageGate& gate, AtomicFile* obj, AtomicFile* mtl,
+                      VertexTexts* texts = nullptr);
+// Textured, its bulk is written before the PNG is had, where it lies if the PNG is
+// `png_size_guess` bytes (the bytes are the same for any guess; a right one writes the bulk once,
+// while the PNG is being encoded).
+inline constexpr std::size_t kPngSizeGuess = std::size_t{1} << 20;
 Expected<void> PutGlb(const Mesh& mesh, const StageGate& gate, const PngSource& png,
-                      AtomicFile* file);
+                      AtomicFile* file, std::size_t png_size_guess = kPngSizeGuess);
 
 // Unit normal of each vertex: the area-weighted sum of its faces' normals; +z where that is zero.
 std::vector<Eigen::Vector3f> VertexNormals(const Mesh& mesh);

@@ -276,6 +276,9 @@ struct Window {  // pixels
   }
 };
 
+// How far ahead of a gather its records are fetched (__builtin_prefetch).
+constexpr int kGatherAhead = 16;
+
 // A vertex's sample from a view, weighted (b, g, r, weight).
 struct VertexSample {
   int index;
@@ -350,8 +353,13 @@ class ViewSweep {
     }
     GrowTo(&c_front_, static_cast<std::size_t>(count));
     const std::vector<Eigen::Vector3f>& vertex_normal = in_.surface.vertex_normal;
+    const int* entries = &in_.vertices.entries[first];
     for (int j = 0; j < count; ++j) {
-      const int vi = in_.vertices.entries[first + j];
+      if (j + kGatherAhead < count) {
+        __builtin_prefetch(&vertices_[entries[j + kGatherAhead]]);
+        __builtin_prefetch(&vertex_normal[entries[j + kGatherAhead]]);
+      }
+      const int vi = entries[j];
       cx_[j] = vertices_[vi].x();
       cy_[j] = vertices_[vi].y();
       cz_[j] = vertices_[vi].z();
@@ -392,9 +400,18 @@ class ViewSweep {
       GrowTo(scratch, static_cast<std::size_t>(count));
     }
     GrowTo(&c_front_, static_cast<std::size_t>(count));
+    // The records are gathered from all over the mesh (a view's candidates are about one face
+    // in twelve): each is fetched ahead, so that the loads overlap.
+    const std::int64_t* entries = &in_.faces.entries[first];
     for (int j = 0; j < count; ++j) {
+      if (j + kGatherAhead < count) {
+        const char* ahead = reinterpret_cast<const char*>(
+            &s.face_point[static_cast<std::size_t>(entries[j + kGatherAhead] / kCandidates)]);
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + sizeof(Surface::FacePoint) - 1);
+      }
       const Surface::FacePoint& f =
-          s.face_point[static_cast<std::size_t>(in_.faces.entries[first + j] / kCandidates)];
+          s.face_point[static_cast<std::size_t>(entries[j] / kCandidates)];
       cx_[j] = f.x;
       cy_[j] = f.y;
       cz_[j] = f.z;

@@ -6,14 +6,19 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "base/png_encode.h"
 #include "reconstruct/io/mesh_io.h"
+#include "reconstruct/io/writer_support.h"
 #include "tests/support/test_files.h"
 
 namespace revolve::reconstruct {
@@ -176,6 +181,57 @@ TEST_F(ModelWriterTest, AnAbandonedMeshLeavesNoFile) {
   EXPECT_TRUE(Contents().empty());
 }
 
+TEST_F(ModelWriterTest, TheMeshDoneBeforeFinishOrAbandonedThenIsWrittenOrLeavesNoFile) {
+  // The reconstruction says kDone through the hook before Finish, which encodes the PNG: the
+  // PNG's writer waits for it. Abandoned after kDone, nothing waits for ever and no file stays.
+  const Mesh finished = Grid(40, 6);
+  for (const bool finish : {true, false}) {
+    SCOPED_TRACE(finish ? "finished" : "abandoned");
+    const fs::path dir = dir_ / (finish ? "finished" : "abandoned");
+    fs::create_directories(dir);
+    Mesh mesh;
+    {
+      Expected<std::unique_ptr<ModelWriter>> writer =
+          ModelWriter::Start(mesh, dir, "model", kFormats);
+      ASSERT_TRUE(writer);
+      MakeInStages(finished, MeshStage::kDone, &mesh, writer->get());
+      (*writer)->Reached(MeshStage::kDone);
+      if (finish) {
+        const Expected<std::vector<fs::path>> files = (*writer)->Finish();
+        ASSERT_TRUE(files) << files.error().ToString();
+        EXPECT_EQ(files->size(), 7u);
+      }
+    }
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), finish ? 7 : 0);
+  }
+}
+
+TEST_F(ModelWriterTest, SharedVertexTextsAreTheTextsFormattedInPlace) {
+  // The model writer formats the vertices' coordinates once for the VRML and the OBJ; WriteVrml
+  // and WriteObj format them in place. Coordinates of every length (long ones past the 32 bytes
+  // copied at once, huge and non-finite ones in their shortest form) read the same.
+  Mesh mesh = Grid(12, 8);
+  mesh.texture = cv::Mat();
+  mesh.uvs.clear();
+  mesh.uv_faces.clear();
+  mesh.vertices[1] = Eigen::Vector3f(-1234.56789f, -9876.54321f, -5555.55555f);
+  mesh.vertices[2] = Eigen::Vector3f(1e12f, -3e15f, 7.25e18f);
+  mesh.vertices[3] = Eigen::Vector3f(std::numeric_limits<float>::infinity(), -0.0f, 1e-7f);
+  mesh.vertices[4] = Eigen::Vector3f(-123456.79f, -234567.89f, -345678.91f);  // 38 characters
+  ASSERT_TRUE(WriteModel(mesh, dir_, "model", {"obj", "wrl"}));
+  fs::create_directories(dir_ / "apart");
+  ASSERT_TRUE(WriteObj(mesh, dir_ / "apart" / "model.obj"));
+  ASSERT_TRUE(WriteVrml(mesh, dir_ / "apart" / "model.wrl"));
+  for (const char* name : {"model.obj", "model.wrl"}) {
+    std::ifstream a(dir_ / name, std::ios::binary);
+    std::ifstream b(dir_ / "apart" / name, std::ios::binary);
+    const std::string a_bytes(std::istreambuf_iterator<char>(a), std::istreambuf_iterator<char>{});
+    const std::string b_bytes(std::istreambuf_iterator<char>(b), std::istreambuf_iterator<char>{});
+    EXPECT_FALSE(a_bytes.empty());
+    EXPECT_TRUE(a_bytes == b_bytes) << name;
+  }
+}
+
 TEST_F(ModelWriterTest, ErrorsNameTheFile) {
   const Mesh mesh = Grid(8, 4);
   // An unknown format: nothing started.
@@ -194,6 +250,45 @@ TEST_F(ModelWriterTest, ErrorsNameTheFile) {
   EXPECT_NE(written.error().message.find((dir_ / "nope" / "model.obj").string()), std::string::npos)
       << written.error().message;
   EXPECT_TRUE(Contents().empty());
+}
+
+TEST_F(ModelWriterTest, TheGlbIsTheSameWhateverThePngSizeGuessed) {
+  // The textured glTF's bulk is written before its PNG is encoded, where a guess of the PNG's
+  // size puts it; a wrong guess (the JSON longer or shorter) must not change a byte.
+  const Mesh mesh = Grid(40, 5);
+  const Expected<std::string> png = EncodePng(mesh.texture);
+  ASSERT_TRUE(png);
+  const internal::StageGate done(MeshStage::kDone);
+  std::vector<std::string> files;
+  for (const std::size_t guess :
+       {std::size_t{1}, std::size_t{99}, png->size(), std::size_t{1} << 20, std::size_t{1} << 40}) {
+    const fs::path path = dir_ / fmt::format("guess{}.glb", guess);
+    AtomicFile file(path);
+    ASSERT_TRUE(file.Open());
+    ASSERT_TRUE(internal::PutGlb(
+        mesh, done, [&png] { return &*png; }, &file, guess));
+    ASSERT_TRUE(file.Commit());
+    std::ifstream in(path, std::ios::binary);
+    files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  ASSERT_TRUE(WriteGlb(mesh, dir_ / "whole.glb"));
+  std::ifstream in(dir_ / "whole.glb", std::ios::binary);
+  const std::string whole(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>{});
+  for (const std::string& bytes : files) EXPECT_TRUE(bytes == whole);
+  // And it is a whole GLB: its length, its JSON chunk, then the binary chunk to the end, which
+  // opens with the first face's first corner and ends with the PNG (padded to 4 bytes).
+  ASSERT_GT(whole.size(), 28u);
+  std::uint32_t total = 0, json_length = 0, bin_length = 0;
+  std::memcpy(&total, whole.data() + 8, 4);
+  std::memcpy(&json_length, whole.data() + 12, 4);
+  EXPECT_EQ(total, whole.size());
+  const std::size_t bin = 20 + std::size_t{json_length};
+  ASSERT_LT(bin + 8, whole.size());
+  std::memcpy(&bin_length, whole.data() + bin, 4);
+  EXPECT_EQ(bin + 8 + bin_length, whole.size());
+  EXPECT_EQ(std::memcmp(whole.data() + bin + 8, mesh.vertices[mesh.faces[0][0]].data(), 12), 0);
+  const std::size_t padding = (4 - png->size() % 4) % 4;
+  EXPECT_EQ(whole.substr(whole.size() - padding - png->size(), png->size()), *png);
 }
 
 }  // namespace
