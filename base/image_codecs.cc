@@ -24,13 +24,9 @@ std::atomic<bool> g_loaded{false};
 Expected<const plugin::Table*> Load() {
   const PluginFile file{"OpenCV's image codecs (librevolve_imgcodecs.so)",
                         REVOLVE_IMGCODECS_FROM_BINDIR, REVOLVE_IMGCODECS_BUILD_FILE};
-  const plugin::Table* table = nullptr;
-  const Expected<void*> entry = LoadPluginEntry(file, plugin::kEntryPoint, [&](void* address) {
-    table = reinterpret_cast<plugin::EntryPoint>(address)();
-    return table != nullptr && table->version == plugin::kVersion;
-  });
-  if (!entry) return std::unexpected(entry.error());
-  g_loaded = true;
+  Expected<const plugin::Table*> table =
+      LoadPluginTable<plugin::Table>(file, plugin::kEntryPoint, plugin::kVersion);
+  if (table) g_loaded = true;
   return table;
 }
 

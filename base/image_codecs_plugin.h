@@ -28,6 +28,4 @@ struct Table {
                  std::vector<std::uint8_t>* bytes, std::string* error) = nullptr;
 };
 
-using EntryPoint = const Table* (*)();
-
 }  // namespace revolve::image_codecs_plugin

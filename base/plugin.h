@@ -25,4 +25,18 @@ struct PluginFile {
 Expected<void*> LoadPluginEntry(const PluginFile& file, const char* entry_point,
                                 const std::function<bool(void* entry)>& accept);
 
+// The table a plugin's entry point (`const Table* entry()`) returns, taken when its `version` is
+// `version` (both sides built together; another is a stale plugin from another build).
+template <typename Table>
+Expected<const Table*> LoadPluginTable(const PluginFile& file, const char* entry_point,
+                                       int version) {
+  const Table* table = nullptr;
+  const Expected<void*> entry = LoadPluginEntry(file, entry_point, [&](void* address) {
+    table = reinterpret_cast<const Table* (*)()>(address)();
+    return table != nullptr && table->version == version;
+  });
+  if (!entry) return std::unexpected(entry.error());
+  return table;
+}
+
 }  // namespace revolve

@@ -14,17 +14,10 @@ namespace plugin = libcamera_plugin;
 
 // The plugin's table, or why it could not be loaded; once per process.
 const Expected<const plugin::Table*>& Plugin() {
-  static const Expected<const plugin::Table*> table = []() -> Expected<const plugin::Table*> {
-    const PluginFile file{"the libcamera backend (librevolve_libcamera.so)",
-                          REVOLVE_LIBCAMERA_FROM_BINDIR, REVOLVE_LIBCAMERA_BUILD_FILE};
-    const plugin::Table* found = nullptr;
-    const Expected<void*> entry = LoadPluginEntry(file, plugin::kEntryPoint, [&](void* address) {
-      found = reinterpret_cast<plugin::EntryPoint>(address)();
-      return found != nullptr && found->version == plugin::kVersion;
-    });
-    if (!entry) return std::unexpected(entry.error());
-    return found;
-  }();
+  static const Expected<const plugin::Table*> table =
+      LoadPluginTable<plugin::Table>({"the libcamera backend (librevolve_libcamera.so)",
+                                      REVOLVE_LIBCAMERA_FROM_BINDIR, REVOLVE_LIBCAMERA_BUILD_FILE},
+                                     plugin::kEntryPoint, plugin::kVersion);
   return table;
 }
 

@@ -36,6 +36,4 @@ struct Table {
   std::string (*list)() = nullptr;
 };
 
-using EntryPoint = const Table* (*)();
-
 }  // namespace revolve::capture::libcamera_plugin

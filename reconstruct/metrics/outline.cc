@@ -138,6 +138,17 @@ struct PlaneTest {
   std::uint8_t flat_axes = 0;
 };
 
+// A PlaneTest's point, k, threshold and minimum altitude in floats, as the loops over the faces
+// compare them (their rounding is within the threshold's allowance).
+struct PlaneTestFloats {
+  float px, py, pz, k, threshold, min_height;
+};
+PlaneTestFloats InFloats(const PlaneTest& test) {
+  return {static_cast<float>(test.point.x()), static_cast<float>(test.point.y()),
+          static_cast<float>(test.point.z()), static_cast<float>(test.k),
+          static_cast<float>(test.threshold), static_cast<float>(test.min_height)};
+}
+
 PlaneTest PlaneTestOf(const OutlineIndex& index, const View& view) {
   PlaneTest test;
   const Eigen::Matrix3d m = view.pixel_from_object.leftCols<3>();
@@ -401,12 +412,7 @@ std::size_t OrientationsFromPlanes(const OutlineIndex& index, const PlaneTest& t
   const float* nz = index.normal_z().data();
   const float* offset = index.offset().data();
   const float* height = index.height().data();
-  const auto px = static_cast<float>(test.point.x());
-  const auto py = static_cast<float>(test.point.y());
-  const auto pz = static_cast<float>(test.point.z());
-  const auto k = static_cast<float>(test.k);
-  const auto threshold = static_cast<float>(test.threshold);
-  const auto min_height = static_cast<float>(test.min_height);
+  const auto [px, py, pz, k, threshold, min_height] = InFloats(test);
   const std::uint8_t flip = test.flip ? 1 : 0;
   const std::uint8_t* shared_axes = index.shared_axes().data();
   const std::uint8_t flat_axes = test.flat_axes;
@@ -552,12 +558,7 @@ void PlaneBits(const FacePlanes& planes, const PlaneTest& test, std::size_t begi
   const float* __restrict offset = planes.offset;
   const float* __restrict height = planes.height;
   const std::uint8_t* __restrict shared_axes = planes.shared_axes;
-  const auto px = static_cast<float>(test.point.x());
-  const auto py = static_cast<float>(test.point.y());
-  const auto pz = static_cast<float>(test.point.z());
-  const auto k = static_cast<float>(test.k);
-  const auto threshold = static_cast<float>(test.threshold);
-  const auto min_height = static_cast<float>(test.min_height);
+  const auto [px, py, pz, k, threshold, min_height] = InFloats(test);
   const ViewBits flip = test.flip ? ~ViewBits{0} : 0;
   const std::uint8_t flat_axes = test.flat_axes;
   // All-ones or zero words, no branch: the loop runs on vectors.
