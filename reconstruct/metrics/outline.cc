@@ -49,10 +49,14 @@ using Segment = OutlineSegment;
 // The pixels `segments` wind around or run through, within the rectangle [lo, hi] (clipped to
 // the view). Each segment adds its direction to the pixels of each row it crosses (rows v with
 // min(y) <= v < max(y)) from its crossing rightwards; a running sum along the row is the winding
-// number.
-BoxedSilhouette Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo,
-                     const Eigen::Vector2d& hi, const View& view,
-                     std::vector<std::int32_t>* winding_store) {
+// number. Built for AVX2 too where the processor has it: there ceil and floor are an instruction
+// each (SSE2's take a dozen), the same values; no fused multiply-add.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+BoxedSilhouette
+Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+     const View& view, std::vector<std::int32_t>* winding_store) {
   BoxedSilhouette result;
   const double u_first = std::max(0.0, std::ceil(lo.x()));
   const double v_first = std::max(0.0, std::ceil(lo.y()));
