@@ -1,7 +1,12 @@
 #include "station/commands/set_masks.h"
 
 #include <algorithm>
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
 #include <ostream>
+#include <thread>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -93,36 +98,87 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
     return MakeError(ErrorCode::kIo,
                      fmt::format("{}: cannot create the folder: {}", dir.string(), ec.message()));
   }
-  // The masks on all cores (reconstruct/parallel.h), each tile and error in its slot; the first
-  // error in image order is returned.
-  std::vector<cv::Mat> tiles(masks.size());
-  std::vector<Expected<void>> written(masks.size());
-  reconstruct::ParallelFor(0, masks.size(), [&](std::size_t i) {
-    const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(size, CV_8UC1)
-                         : mask_origins.empty()
-                             ? masks[i]
-                             : reconstruct::WholeFromWindow(masks[i], mask_origins[i], size);
-    const std::filesystem::path path =
-        dir / (std::filesystem::path(names[i]).stem().string() + ".png");
-    written[i] = WritePngFile(path, mask);
-    if (!written[i]) return;
-    if (i < thumbnails.size() && !thumbnails[i].empty()) {
-      tiles[i] = ContactSheetOutline(thumbnails[i], mask);
-    } else {
-      // The mask's thumbnail in grey, then in colour: the pixels of shrinking it in colour (each
-      // channel alike), for a third of the work; only its window's part shrunk where that is
-      // exact.
-      const cv::Rect content = masks[i].empty() || mask_origins.empty()
-                                   ? cv::Rect(cv::Point(), mask.size())
-                                   : cv::Rect(mask_origins[i], masks[i].size());
-      cv::Mat shown;
-      cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
-      tiles[i] = ContactSheetOutline(shown, mask);
-    }
-  });
+  const std::size_t count = masks.size();
+  const auto path_of = [&](std::size_t i) {
+    return dir / (std::filesystem::path(names[i]).stem().string() + ".png");
+  };
+  // The masks' PNGs and tiles on all cores (reconstruct/parallel.h), each in its slot. Their
+  // files are written on a thread of its own as the PNGs come, each synced (a pool thread waiting
+  // for the disk would leave its core idle while the model is carved), then put in place together
+  // with one sync of the folder. The first error in image order is returned; on an error no mask
+  // is put in place.
+  std::vector<cv::Mat> tiles(count);
+  std::vector<Expected<std::string>> encoded(count, std::string());
+  std::vector<Expected<void>> written(count);
+  std::vector<std::unique_ptr<AtomicFile>> files(count);
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::vector<char> ready(count, 0);
+  {
+    const std::jthread writer([&] {
+      for (std::size_t i = 0; i < count; ++i) {
+        {
+          std::unique_lock lock(mutex);
+          changed.wait(lock, [&] { return ready[i] != 0; });
+        }
+        if (!encoded[i]) {
+          written[i] = MakeError(encoded[i].error().code, fmt::format("{}: {}", path_of(i).string(),
+                                                                      encoded[i].error().message));
+          continue;
+        }
+        auto file = std::make_unique<AtomicFile>(path_of(i));
+        written[i] = file->Open();
+        if (!written[i]) continue;
+        file->Append(*encoded[i]);
+        written[i] = file->Sync();
+        encoded[i] = std::string();
+        files[i] = std::move(file);
+      }
+    });
+    // Every mask is marked done however the loop ends, so that the writer returns.
+    const auto mark = [&](std::size_t i) {
+      {
+        const std::lock_guard lock(mutex);
+        ready[i] = 1;
+      }
+      changed.notify_all();
+    };
+    struct MarkAll {
+      std::function<void()> run;
+      ~MarkAll() { run(); }
+    } const mark_all{[&] {
+      for (std::size_t i = 0; i < count; ++i) mark(i);
+    }};
+    reconstruct::ParallelFor(0, count, [&](std::size_t i) {
+      const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(size, CV_8UC1)
+                           : mask_origins.empty()
+                               ? masks[i]
+                               : reconstruct::WholeFromWindow(masks[i], mask_origins[i], size);
+      encoded[i] = EncodePng(mask);
+      mark(i);
+      if (i < thumbnails.size() && !thumbnails[i].empty()) {
+        tiles[i] = ContactSheetOutline(thumbnails[i], mask);
+      } else {
+        // The mask's thumbnail in grey, then in colour: the pixels of shrinking it in colour (each
+        // channel alike), for a third of the work; only its window's part shrunk where that is
+        // exact.
+        const cv::Rect content = masks[i].empty() || mask_origins.empty()
+                                     ? cv::Rect(cv::Point(), mask.size())
+                                     : cv::Rect(mask_origins[i], masks[i].size());
+        cv::Mat shown;
+        cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
+        tiles[i] = ContactSheetOutline(shown, mask);
+      }
+    });
+  }
   for (const Expected<void>& w : written) {
     if (!w) return w;
   }
+  for (const std::unique_ptr<AtomicFile>& file : files) {
+    REVOLVE_RETURN_IF_ERROR(file->Publish());
+  }
+  // Makes the renames durable (best effort, as AtomicFile::Commit: the files are in place).
+  (void)SyncDirectory(dir);
   return WritePngFile(out_dir / "contact_sheet.png", AssembleContactSheet(tiles));
 }
 
