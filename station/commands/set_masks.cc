@@ -105,8 +105,8 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   // The masks' PNGs and tiles on all cores (reconstruct/parallel.h), each in its slot. Their
   // files are written on a thread of its own as the PNGs come, each synced (a pool thread waiting
   // for the disk would leave its core idle while the model is carved), then put in place together
-  // with one sync of the folder. The first error in image order is returned; on an error no mask
-  // is put in place.
+  // with one sync of the folder, once all are written. The first error in image order is
+  // returned; no temporary file is left.
   std::vector<cv::Mat> tiles(count);
   std::vector<Expected<std::string>> encoded(count, std::string());
   std::vector<Expected<void>> written(count);
