@@ -6,6 +6,7 @@
 #include <memory>
 #include <mutex>
 #include <ostream>
+#include <system_error>
 #include <thread>
 
 #include <fmt/format.h>
@@ -114,27 +115,34 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
   std::mutex mutex;
   std::condition_variable changed;
   std::vector<char> ready(count, 0);
-  {
-    const std::jthread writer([&] {
-      for (std::size_t i = 0; i < count; ++i) {
-        {
-          std::unique_lock lock(mutex);
-          changed.wait(lock, [&] { return ready[i] != 0; });
-        }
-        if (!encoded[i]) {
-          written[i] = MakeError(encoded[i].error().code, fmt::format("{}: {}", path_of(i).string(),
-                                                                      encoded[i].error().message));
-          continue;
-        }
-        auto file = std::make_unique<AtomicFile>(path_of(i));
-        written[i] = file->Open();
-        if (!written[i]) continue;
-        file->Append(*encoded[i]);
-        written[i] = file->Sync();
-        encoded[i] = std::string();
-        files[i] = std::move(file);
+  const auto write_all = [&] {
+    for (std::size_t i = 0; i < count; ++i) {
+      {
+        std::unique_lock lock(mutex);
+        changed.wait(lock, [&] { return ready[i] != 0; });
       }
-    });
+      if (!encoded[i]) {
+        written[i] = MakeError(encoded[i].error().code, fmt::format("{}: {}", path_of(i).string(),
+                                                                    encoded[i].error().message));
+        continue;
+      }
+      auto file = std::make_unique<AtomicFile>(path_of(i));
+      written[i] = file->Open();
+      if (!written[i]) continue;
+      file->Append(*encoded[i]);
+      written[i] = file->Sync();
+      encoded[i] = std::string();
+      files[i] = std::move(file);
+    }
+  };
+  bool written_here = false;
+  {
+    std::jthread writer;
+    try {
+      writer = std::jthread(write_all);
+    } catch (const std::system_error&) {
+      written_here = true;  // no thread to be had: the files are written once all are encoded
+    }
     // Every mask is marked done however the loop ends, so that the writer returns.
     const auto mark = [&](std::size_t i) {
       {
@@ -171,6 +179,7 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
       }
     });
   }
+  if (written_here) write_all();
   for (const Expected<void>& w : written) {
     if (!w) return w;
   }
