@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <condition_variable>
-#include <functional>
 #include <memory>
 #include <mutex>
 #include <ostream>
@@ -143,7 +142,6 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
     } catch (const std::system_error&) {
       written_here = true;  // no thread to be had: the files are written once all are encoded
     }
-    // Every mask is marked done however the loop ends, so that the writer returns.
     const auto mark = [&](std::size_t i) {
       {
         const std::lock_guard lock(mutex);
@@ -151,33 +149,33 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
       }
       changed.notify_all();
     };
-    struct MarkAll {
-      std::function<void()> run;
-      ~MarkAll() { run(); }
-    } const mark_all{[&] {
+    try {
+      reconstruct::ParallelFor(0, count, [&](std::size_t i) {
+        const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(size, CV_8UC1)
+                             : mask_origins.empty()
+                                 ? masks[i]
+                                 : reconstruct::WholeFromWindow(masks[i], mask_origins[i], size);
+        encoded[i] = EncodePng(mask);
+        mark(i);
+        if (i < thumbnails.size() && !thumbnails[i].empty()) {
+          tiles[i] = ContactSheetOutline(thumbnails[i], mask);
+        } else {
+          // The mask's thumbnail in grey, then in colour: the pixels of shrinking it in colour
+          // (each channel alike), for a third of the work; only its window's part shrunk where that
+          // is exact.
+          const cv::Rect content = masks[i].empty() || mask_origins.empty()
+                                       ? cv::Rect(cv::Point(), mask.size())
+                                       : cv::Rect(mask_origins[i], masks[i].size());
+          cv::Mat shown;
+          cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
+          tiles[i] = ContactSheetOutline(shown, mask);
+        }
+      });
+    } catch (...) {
+      // Every mask marked done, so that the writer returns before this goes on.
       for (std::size_t i = 0; i < count; ++i) mark(i);
-    }};
-    reconstruct::ParallelFor(0, count, [&](std::size_t i) {
-      const cv::Mat mask = masks[i].empty() ? cv::Mat::zeros(size, CV_8UC1)
-                           : mask_origins.empty()
-                               ? masks[i]
-                               : reconstruct::WholeFromWindow(masks[i], mask_origins[i], size);
-      encoded[i] = EncodePng(mask);
-      mark(i);
-      if (i < thumbnails.size() && !thumbnails[i].empty()) {
-        tiles[i] = ContactSheetOutline(thumbnails[i], mask);
-      } else {
-        // The mask's thumbnail in grey, then in colour: the pixels of shrinking it in colour (each
-        // channel alike), for a third of the work; only its window's part shrunk where that is
-        // exact.
-        const cv::Rect content = masks[i].empty() || mask_origins.empty()
-                                     ? cv::Rect(cv::Point(), mask.size())
-                                     : cv::Rect(mask_origins[i], masks[i].size());
-        cv::Mat shown;
-        cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
-        tiles[i] = ContactSheetOutline(shown, mask);
-      }
-    });
+      throw;
+    }
   }
   if (written_here) write_all();
   for (const Expected<void>& w : written) {
