@@ -16,6 +16,8 @@ constexpr int kLevels = 16;
 // An index computed in int (image sizes fit), as a container subscript.
 std::size_t At(int index) { return static_cast<std::size_t>(index); }
 constexpr int kBins = kLevels * kLevels * kLevels;
+// The prior's share of a colour histogram (Costs).
+constexpr double kPriorShare = 0.1;
 
 // Colour level (0..15) of an 8-bit value on a square-root scale: levels 0..3 cover 0..15, so the
 // dark shadows of an object stay apart from a black backdrop.
@@ -45,16 +47,21 @@ std::vector<float> Smoothed(const std::vector<float>& histogram) {
   return a;
 }
 
-// -log of each bin's share of the histogram (one count added to every bin: a colour never seen
-// costs the same finite amount in both models).
+// -log of each bin's share of the histogram, a tenth of its count added spread evenly over the
+// bins: a colour never seen costs the same finite amount in both models, whatever the sizes of
+// their samples. (One count added to every bin made the prior ~4096 counts, as much as a small
+// object's own pixels: its rarer colours, the deep shadows on it, then cost it more than they
+// cost the larger backdrop.)
 std::vector<float> Costs(const std::vector<float>& histogram) {
   const std::vector<float> smooth = Smoothed(histogram);
-  double total = 0.0;
-  for (float h : smooth) total += h + 1.0f;
+  double count = 0.0;
+  for (float h : smooth) count += h;
+  const double prior = kPriorShare * count / kBins;
+  const double total = count + kPriorShare * count;
   std::vector<float> cost(kBins);
   for (int i = 0; i < kBins; ++i) {
     cost[static_cast<std::size_t>(i)] =
-        static_cast<float>(-std::log((smooth[static_cast<std::size_t>(i)] + 1.0) / total));
+        static_cast<float>(-std::log((smooth[static_cast<std::size_t>(i)] + prior) / total));
   }
   return cost;
 }
