@@ -162,7 +162,8 @@ Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& o
 
 }  // namespace
 
-bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& options) {
+bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& options,
+                 const cv::Mat& object_samples) {
   static const std::array<std::uint16_t, 256> level = LevelTable();
   cv::Mat bins(bgr.size(), CV_16UC1);
   bool has_object = false, has_backdrop = false;
@@ -184,10 +185,16 @@ bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& op
   const bool continuous = labels.isContinuous();
   cv::Mat work = continuous ? labels : labels.clone();
   auto* label = work.ptr<std::uint8_t>(0);
+  // The samples as one row of the image's pixels (null: none).
+  const cv::Mat samples = object_samples.empty() || object_samples.isContinuous()
+                              ? object_samples
+                              : object_samples.clone();
+  const std::uint8_t* sample = samples.empty() ? nullptr : samples.ptr<std::uint8_t>(0);
   for (int iteration = 0; iteration < options.iterations; ++iteration) {
     std::vector<float> object(kBins, 0.0f), backdrop(kBins, 0.0f);
     for (std::size_t i = 0; i < bgr.total(); ++i) {
-      (IsObject(label[i]) ? object : backdrop)[bin[i]] += 1.0f;
+      const bool as_object = IsObject(label[i]) || (sample != nullptr && sample[i] != 0);
+      (as_object ? object : backdrop)[bin[i]] += 1.0f;
     }
     const std::vector<float> object_cost = Costs(object);
     const std::vector<float> backdrop_cost = Costs(backdrop);

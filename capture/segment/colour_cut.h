@@ -24,6 +24,11 @@ struct ColourCutOptions {
 // in the dark), a cut between 8-neighbours smoothness * exp(-beta |c1 - c2|^2) / distance with
 // beta = 1 / (2 mean |c1 - c2|^2). Sure labels (GC_FGD, GC_BGD) stay. Returns false, labels
 // untouched, when either class has no pixel at all.
-bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& options = {});
+// `object_samples` (CV_8UC1 of the same size, may be empty): pixels whose colours teach the
+// object's histogram in every iteration, whatever the last cut made of them, and never the
+// backdrop's (what the noise hysteresis brought in: a region the cut gives up cannot teach the
+// backdrop model its colours, and the next cut then give up the whole of it).
+bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& options = {},
+                 const cv::Mat& object_samples = cv::Mat());
 
 }  // namespace revolve::capture

@@ -194,6 +194,12 @@ double ProbableLevel(const ScoreLevels& levels) {
 
 }  // namespace
 
+cv::Mat NoiseScore(const cv::Mat& score) {
+  cv::Mat out;
+  cv::blur(score, out, cv::Size(5, 5), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  return out;
+}
+
 double BackdropNoiseCeiling(const cv::Mat& score, const cv::Mat& roi) {
   cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
   if (box.area() == 0) box = cv::Rect(0, 0, score.cols, score.rows);
@@ -281,7 +287,7 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
     border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
   }
   const bool hysteresis = UsesNoiseHysteresis(levels);
-  const cv::Mat above_noise = hysteresis ? cv::Mat(score > levels.noise) : cv::Mat();
+  const cv::Mat above_noise = hysteresis ? cv::Mat(NoiseScore(score) > levels.noise) : cv::Mat();
   // With the hysteresis: the colours of what rises above the noise on the frame's edge (a
   // stand's foot, a cloth) are never object for sure nor brought in; the object's own body where
   // it crosses the frame's edge (a vase cropped at the top, an object on the bottom edge) does not
@@ -342,7 +348,9 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trima
   cv::Mat cropped_labels = labels(crop).clone();
   ColourCutOptions cut;
   cut.iterations = options.iterations;
-  if (!CutByColour(small_bgr(crop), cropped_labels, cut)) return fallback;
+  if (!CutByColour(small_bgr(crop), cropped_labels, cut, kept.empty() ? cv::Mat() : kept(crop))) {
+    return fallback;
+  }
   cropped_labels.copyTo(labels(crop));
   cv::Mat object = (labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD);
   if (scale == 1.0) return object;

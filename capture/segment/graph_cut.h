@@ -23,6 +23,13 @@ struct ScoreLevels {
   double noise = -1.0;
 };
 
+// The score as the noise hysteresis reads it: averaged over 5 x 5 pixels, so that the backdrop's
+// noise (a fifth of it left) and a dim region of the object (its level kept) stand apart where
+// pixel by pixel they overlap (sensor noise of sigma 8 against a deep shadow 20 levels above a
+// black backdrop). BackdropNoiseCeiling is measured on it and the trimap's "above the noise" read
+// from it.
+cv::Mat NoiseScore(const cv::Mat& score);
+
 // The highest score the backdrop's own pixels reach: over the outline of the region of
 // interest's bounding rectangle (`roi` CV_8UC1, may be empty = the whole frame), the median
 // score plus 5 scaled median absolute deviations (1.4826 MAD, a robust sigma), at least 3 levels
@@ -59,13 +66,13 @@ struct Trimap {
 // The trimap of `bgr` (CV_8UC3) from its score: score > object eroded by 2 px: GC_FGD;
 // <= backdrop eroded by 2 px, or on the border ring and not above object: GC_BGD; above 30 % of
 // the way from backdrop to object: GC_PR_FGD; else GC_PR_BGD.
-// With the noise hysteresis (UsesNoiseHysteresis): GC_BGD is <= noise eroded by 2 px (and the
-// border ring); every pixel above noise 8-connected to a GC_FGD pixel through pixels above noise
-// is at least GC_PR_FGD and kept from the reach's limit, unless its colour is common among the
-// pixels above noise on the border ring (away from the sure object; 16 levels a channel on a
-// square-root scale, one level of slack): a stand or a cloth that touches the frame's edge, and a
-// fold of it seen between an object's parts, are not brought in; the object's own shadows are.
-// `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
+// With the noise hysteresis (UsesNoiseHysteresis), "noise" read on NoiseScore(score): GC_BGD is
+// <= noise eroded by 2 px (and the border ring); every pixel above noise 8-connected to a GC_FGD
+// pixel through pixels above noise is at least GC_PR_FGD and kept from the reach's limit, unless
+// its colour is common among the pixels above noise on the border ring (away from the sure object;
+// 16 levels a channel on a square-root scale, one level of slack): a stand or a cloth that touches
+// the frame's edge, and a fold of it seen between an object's parts, are not brought in; the
+// object's own shadows are. `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
 Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
                        const cv::Mat& roi, const GraphCutOptions& options);
 

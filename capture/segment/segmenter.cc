@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include <fmt/format.h>
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
@@ -25,6 +27,9 @@ constexpr double kColouredBackdropChroma = 30.0;
 constexpr double kShadowModelMinLuma = 60.0;
 // graphcut: holes of at most this many pixels are filled whatever they show.
 constexpr int kMinOpenHolePx = 16;
+// graphcut: a backdrop whose fitted plane rises more than this (levels, some channel) across the
+// outline's rectangle is cut against the plane rather than one colour.
+constexpr double kMinBackdropSlope = 6.0;
 
 Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
   if (image.empty())
@@ -37,6 +42,88 @@ Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
                                  what, cv::typeToString(image.type())));
   }
   return {};
+}
+
+// The pixels on the outline of the region of interest's bounding rectangle (the whole frame
+// when `roi` is empty), each once.
+std::vector<cv::Point> OutlineOf(cv::Size size, const cv::Mat& roi) {
+  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
+  if (box.area() == 0) box = cv::Rect(0, 0, size.width, size.height);
+  std::vector<cv::Point> points;
+  for (int x = box.x; x < box.x + box.width; ++x) {
+    points.emplace_back(x, box.y);
+    if (box.height > 1) points.emplace_back(x, box.y + box.height - 1);
+  }
+  for (int y = box.y + 1; y + 1 < box.y + box.height; ++y) {
+    points.emplace_back(box.x, y);
+    if (box.width > 1) points.emplace_back(box.x + box.width - 1, y);
+  }
+  return points;
+}
+
+// The backdrop graphcut cuts `bgr` (CV_8UC3) against: `key` (1x1), or where the outline of the
+// region of interest shows the backdrop lit unevenly (a plane fitted to each channel of it rises
+// more than kMinBackdropSlope levels across the rectangle), that plane at every pixel (CV_8UC3 of
+// the image's size). Each plane is fitted by least squares, then twice again to the pixels within
+// 3 robust sigmas (1.4826 MAD, at least 2 levels) of the last fit, so that an object or a stand
+// crossing the outline does not tilt it.
+cv::Mat BackdropAcross(const cv::Mat& bgr, const cv::Scalar& key, const cv::Mat& roi) {
+  cv::Mat one(1, 1, CV_8UC3, key);
+  const std::vector<cv::Point> points = OutlineOf(bgr.size(), roi);
+  if (points.size() < 16) return one;
+  const cv::Rect box = cv::boundingRect(points);
+  // Coordinates centred on the rectangle and scaled to +-1 (a well-conditioned fit).
+  const double cx = box.x + 0.5 * (box.width - 1), cy = box.y + 0.5 * (box.height - 1);
+  const double sx = std::max(1.0, 0.5 * (box.width - 1)),
+               sy = std::max(1.0, 0.5 * (box.height - 1));
+  std::array<Eigen::Vector3d, 3> planes;
+  double rise = 0.0;
+  for (int c = 0; c < 3; ++c) {
+    Eigen::Vector3d plane(key[c], 0.0, 0.0);
+    double limit = std::numeric_limits<double>::infinity();
+    for (int round = 0; round < 3; ++round) {
+      Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      std::vector<double> residuals;
+      residuals.reserve(points.size());
+      for (const cv::Point& p : points) {
+        const Eigen::Vector3d row(1.0, (p.x - cx) / sx, (p.y - cy) / sy);
+        const double value = bgr.at<cv::Vec3b>(p)[c];
+        const double residual = value - plane.dot(row);
+        if (std::abs(residual) > limit) continue;
+        normal += row * row.transpose();
+        rhs += value * row;
+      }
+      const Eigen::Vector3d fitted = normal.ldlt().solve(rhs);
+      if (!fitted.allFinite()) break;
+      plane = fitted;
+      for (const cv::Point& p : points) {
+        const Eigen::Vector3d row(1.0, (p.x - cx) / sx, (p.y - cy) / sy);
+        residuals.push_back(std::abs(bgr.at<cv::Vec3b>(p)[c] - plane.dot(row)));
+      }
+      const auto middle = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
+      std::nth_element(residuals.begin(), middle, residuals.end());
+      limit = std::max(2.0, 3.0 * 1.4826 * *middle);
+    }
+    planes[static_cast<std::size_t>(c)] = plane;
+    rise = std::max(rise, 2.0 * (std::abs(plane[1]) + std::abs(plane[2])));
+  }
+  if (!(rise > kMinBackdropSlope)) return one;
+  // Row by row: the first row's values, then each next one a row's step more (floats).
+  cv::Mat row(1, bgr.cols, CV_32FC3);
+  for (int x = 0; x < bgr.cols; ++x) {
+    const Eigen::Vector3d at(1.0, (x - cx) / sx, -cy / sy);
+    for (int c = 0; c < 3; ++c) {
+      row.at<cv::Vec3f>(0, x)[c] = static_cast<float>(planes[static_cast<std::size_t>(c)].dot(at));
+    }
+  }
+  const cv::Scalar step(planes[0][2] / sy, planes[1][2] / sy, planes[2][2] / sy);
+  cv::Mat out(bgr.size(), CV_8UC3);
+  for (int y = 0; y < out.rows; ++y) {
+    row.convertTo(out.row(y), CV_8UC3);
+    row += step;
+  }
+  return out;
 }
 
 // BGR (CV_8UC3) view of an 8-bit image with 1, 3 or 4 channels.
@@ -113,7 +200,7 @@ class PipelineSegmenter final : public Segmenter {
                                  ? cv::Scalar(options_.backdrop_bgr[0], options_.backdrop_bgr[1],
                                               options_.backdrop_bgr[2])
                                  : EstimateBackdropColour(bgr, roi);
-      return SegmentByCut(bgr, cv::Mat(1, 1, CV_8UC3, key), Luma(key) >= kShadowModelMinLuma, roi,
+      return SegmentByCut(bgr, BackdropAcross(bgr, key, roi), Luma(key) >= kShadowModelMinLuma, roi,
                           factor);
     }
     if (method == "background") {
@@ -162,7 +249,7 @@ class PipelineSegmenter final : public Segmenter {
       return cv::Mat::zeros(bgr.size(), CV_8UC1);
     }
     scored.levels = {static_cast<double>(split.threshold), split.low_mean,
-                     BackdropNoiseCeiling(scored.score, roi_w)};
+                     BackdropNoiseCeiling(NoiseScore(scored.score), roi_w)};
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(

@@ -4,10 +4,14 @@
 // the uneven cloth for the set segmenter (auto learns the backdrop from the sequence).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <string>
 #include <vector>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/segment/set_segmentation.h"
@@ -221,6 +225,101 @@ TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
               mean);
   EXPECT_GE(mean, 0.97);
 }
+
+// What a real camera adds to the frames of a turntable sequence (each applied to frame k).
+enum class Imperfection { kNoise, kDefocus, kFlicker, kUnevenLight, kJpeg };
+
+cv::Mat WithImperfection(const cv::Mat& image, Imperfection imperfection, int k) {
+  cv::Mat out;
+  switch (imperfection) {
+    case Imperfection::kNoise:  // a high gain: sensor noise of sigma 8 levels
+      return test_support::WithNoise(image, 8.0, static_cast<std::uint64_t>(40 + k));
+    case Imperfection::kDefocus:  // a lens a little out of focus
+      cv::GaussianBlur(image, out, {0, 0}, 1.5);
+      return out;
+    case Imperfection::kFlicker:  // auto exposure: the gain and the black level move per frame
+      image.convertTo(out, CV_8UC3, 1.0 + 0.25 * std::sin(1.7 * k), 6.0 * std::sin(k));
+      return out;
+    case Imperfection::kUnevenLight: {  // the backdrop lit from one side: 0 to 20 levels across
+      cv::Mat ramp(image.size(), CV_8UC3);
+      for (int x = 0; x < image.cols; ++x) {
+        const auto level = static_cast<std::uint8_t>(20 * x / image.cols);
+        ramp.col(x).setTo(cv::Scalar(level, level, level));
+      }
+      cv::add(image, ramp, out);
+      return out;
+    }
+    case Imperfection::kJpeg: {  // a webcam's stream: noise sigma 5, then JPEG at quality 60
+      std::vector<std::uint8_t> bytes;
+      cv::imencode(".jpg", test_support::WithNoise(image, 5.0, static_cast<std::uint64_t>(60 + k)),
+                   bytes, {cv::IMWRITE_JPEG_QUALITY, 60});
+      return cv::imdecode(bytes, cv::IMREAD_COLOR);
+    }
+  }
+  return image;
+}
+
+struct ImperfectionCase {
+  Imperfection imperfection;
+  std::string name;
+};
+
+// The case's name, not its bytes, in test listings.
+void PrintTo(const ImperfectionCase& c, std::ostream* out) { *out << c.name; }
+
+// The vase over black (level 4) with its lower third in deep shadow (15 %), then sensor noise of
+// sigma 3 over all of it (as a camera adds it: the shadow is as noisy as the backdrop).
+Frame ShadowedVaseOverBlack(double angle_deg, std::uint64_t seed) {
+  auto camera = Camera("vase", 1.0);
+  if (!camera) return {};
+  const RenderOutput render = camera->RenderWithTruth(angle_deg, 1);
+  Frame frame;
+  frame.truth = render.true_mask;
+  frame.image = cv::Mat(render.image.size(), CV_8UC3, cv::Scalar(4, 4, 4));
+  render.image.copyTo(frame.image, render.true_mask);
+  test_support::ShadeLowerThird(frame.image, render.true_mask, 0.15);
+  frame.image = test_support::WithNoise(frame.image, 3.0, seed);
+  return frame;
+}
+
+class CameraImperfections : public ::testing::TestWithParam<ImperfectionCase> {};
+
+// A turntable sequence of 12 frames of the vase over black with its lower third in deep shadow
+// (15 %), through `auto` as `reconstruct --images` runs it: every frame keeps its shadow. Before
+// the score's noise was read over 5 x 5 pixels, the backdrop fitted as a plane and the shadow's
+// own pixels kept teaching the object's colours, these lost the shadowed third in some or all
+// frames (IoU 0.61; a single lost frame carves it off the model).
+TEST_P(CameraImperfections, AutoKeepsTheDeepShadowInEveryFrame) {
+  std::vector<cv::Mat> frames;
+  std::vector<cv::Mat> truths;
+  for (int k = 0; k < 12; ++k) {
+    const Frame frame = ShadowedVaseOverBlack(30.0 * k, static_cast<std::uint64_t>(100 + k));
+    ASSERT_FALSE(frame.image.empty());
+    frames.push_back(WithImperfection(frame.image, GetParam().imperfection, k));
+    truths.push_back(frame.truth);
+  }
+  SegmentOptions options;
+  options.method = "auto";
+  Expected<SetSegmentation> set = SegmentImageSet(frames, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  double least = 1.0;
+  for (std::size_t k = 0; k < truths.size(); ++k)
+    least = std::min(least, IoU(set->masks[k], truths[k]));
+  const double mean = MeanIoU(*set, truths);
+  std::printf("shadowed vase over black, %s: auto (%s) mean IoU %.4f, min %.4f\n",
+              GetParam().name.c_str(), set->method.c_str(), mean, least);
+  EXPECT_GE(mean, 0.97);
+  EXPECT_GE(least, 0.95);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    TurntableOverBlack, CameraImperfections,
+    ::testing::Values(ImperfectionCase{Imperfection::kNoise, "noise_sigma_8"},
+                      ImperfectionCase{Imperfection::kDefocus, "defocus"},
+                      ImperfectionCase{Imperfection::kFlicker, "exposure_flicker"},
+                      ImperfectionCase{Imperfection::kUnevenLight, "backdrop_lit_from_one_side"},
+                      ImperfectionCase{Imperfection::kJpeg, "noisy_jpeg_q60"}),
+    [](const auto& p) { return p.param.name; });
 
 // The object over black (level 4, noise sigma 3), shifted so it crosses the frame's top edge (a
 // tall vase cropped at the top) or its bottom edge (a light object standing on the frame's

@@ -4,7 +4,9 @@
 // - a dark backdrop with a stand under the object (a post down to the frame's bottom edge, the
 //   same in every view, as a turned cylinder is), dark grey, or light grey above the object level;
 // - a black backdrop with the object's lower third in deep shadow (15 % of its brightness);
-// - both: the shadowed object on a stand over black.
+// - both: the shadowed object on a stand over black;
+// - the shadowed object over black lit from one side (0 to 20 levels across) with a noisier
+//   sensor (sigma 6).
 // The model is reprojected into every view and compared with the true silhouettes (bar 0.975),
 // and revolve's own masks must agree with its model (report.json, bar 0.95).
 #include <gtest/gtest.h>
@@ -42,6 +44,9 @@ struct SetCase {
   std::string name;
   std::string object;
   cv::Scalar stand_bgr = cv::Scalar(46, 42, 44);  // a post under the object (not kBlackWithShadows)
+  // The backdrop lit from one side (0 to 20 levels across the frame) and a noisier sensor (sigma
+  // 6 instead of 3).
+  bool uneven_and_noisy = false;
 };
 
 // The case's name, not its bytes, in test listings.
@@ -87,7 +92,16 @@ WrittenSet WriteSet(const SetCase& set, const fs::path& dir) {
     if (black) {
       test_support::ShadeLowerThird(image, render.true_mask, 0.15);
     }
-    image = test_support::WithNoise(image, 3.0, static_cast<std::uint64_t>(100 + k));
+    if (set.uneven_and_noisy) {
+      cv::Mat ramp(size, CV_8UC3);
+      for (int x = 0; x < size.width; ++x) {
+        const auto level = static_cast<std::uint8_t>(20 * x / size.width);
+        ramp.col(x).setTo(cv::Scalar(level, level, level));
+      }
+      cv::add(image, ramp, image);
+    }
+    image = test_support::WithNoise(image, set.uneven_and_noisy ? 6.0 : 3.0,
+                                    static_cast<std::uint64_t>(100 + k));
     const std::string name = fmt::format("view_{:02}.png", k);
     EXPECT_TRUE(cv::imwrite((dir / name).string(), image));
     const std::optional<View> view = (*camera)->KnownView(angle_deg);
@@ -150,6 +164,8 @@ INSTANTIATE_TEST_SUITE_P(
                               cv::Scalar(96, 92, 98)},
                       SetCase{Backdrop::kBlackWithShadows, "black_with_shadows", "vase"},
                       SetCase{Backdrop::kBlackWithShadows, "black_with_shadows", "cone"},
+                      SetCase{Backdrop::kBlackWithShadows, "black_with_shadows_unevenly_lit_noisy",
+                              "vase", cv::Scalar(), true},
                       SetCase{Backdrop::kBlackWithShadowsOnAStand, "black_with_shadows_on_a_stand",
                               "vase", cv::Scalar(96, 92, 98)}),
     [](const auto& p) { return p.param.name + "_" + p.param.object; });
