@@ -138,8 +138,9 @@ constexpr config::KeyDoc kKeys[] = {
      "outline (which must show backdrop)",
      "", "", "3 numbers in [0, 255], or none"},
     {"segment", "backdrop_bgr", "B G R",
-     "graphcut: the backdrop's colour; empty: estimated from the outline of the region of "
-     "interest"},
+     "graphcut: the backdrop's colour; empty: estimated per frame from the outline of the "
+     "region of interest. A backdrop lit unevenly (from one side, vignetted) is cut against a "
+     "smooth surface fitted to the outline either way"},
     {"segment", "refine", "",
      "background: refine the difference mask's edge with the graph cut, as graphcut does"},
     {"segment", "refine_max_side_px", "px",

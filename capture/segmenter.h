@@ -55,7 +55,8 @@ struct SegmentOptions {
   // the region of interest's outline (which must show backdrop).
   std::vector<double> chroma_key_bgr;
   // graphcut: the backdrop's colour, B G R 0..255; empty estimates it per frame as the median of
-  // the region of interest's outline (SegmentImageSet: over all the set's outlines).
+  // the region of interest's outline. Either way, a backdrop whose outline shows it lit unevenly
+  // is cut against the smooth surface fitted to the outline (capture/segment/backdrop_surface.h).
   std::vector<double> backdrop_bgr;
   // chroma: a pixel is backdrop when its chroma, projected on the key's, reaches this fraction
   // of the key's chroma (0.5 cuts anti-aliased edges at half coverage for neutral objects).

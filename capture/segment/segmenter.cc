@@ -3,14 +3,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <optional>
 
 #include <fmt/format.h>
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/segment/backdrop_surface.h"
 #include "capture/segment/graph_cut.h"
 #include "capture/segment/mask_ops.h"
 
@@ -21,14 +20,16 @@ constexpr int kMaxMorphologyRadiusPx = 50;
 constexpr int kMaxCoordinatePx = 1 << 20;
 // A chroma key whose chroma (|Cb, Cr| in 8-bit units) is weaker than this is grey: no key.
 constexpr double kMinKeyChroma = 12.0;
-// auto: a backdrop whose chroma reaches this is coloured (a chroma key); below it, grey.
-constexpr double kColouredBackdropChroma = 30.0;
+// auto: a backdrop whose chroma reaches this is coloured (a chroma key: a green or blue screen is
+// 60..70); below it, grey (graphcut: a cream or warm white backdrop, ~30 under tungsten light,
+// shares its chroma with the light parts of most objects).
+constexpr double kColouredBackdropChroma = 40.0;
 // auto: a backdrop brighter than this (luma) shows soft shadows worth the shadow model.
 constexpr double kShadowModelMinLuma = 60.0;
 // graphcut: holes of at most this many pixels are filled whatever they show.
 constexpr int kMinOpenHolePx = 16;
-// graphcut: a backdrop whose fitted plane rises more than this (levels, some channel) across the
-// outline's rectangle is cut against the plane rather than one colour.
+// graphcut: a backdrop whose fitted surface (BackdropSurface) rises more than this (levels, some
+// channel) across the outline's rectangle is cut against the surface rather than one colour.
 constexpr double kMinBackdropSlope = 6.0;
 
 Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
@@ -44,85 +45,26 @@ Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
   return {};
 }
 
-// The pixels on the outline of the region of interest's bounding rectangle (the whole frame
-// when `roi` is empty), each once.
-std::vector<cv::Point> OutlineOf(cv::Size size, const cv::Mat& roi) {
+// The backdrop graphcut cuts `bgr` (CV_8UC3) against where the outline of the region of interest's
+// bounding rectangle shows it lit unevenly (its BackdropSurface rises more than
+// kMinBackdropSlope levels: light from one side, a lens's vignetting): that surface at every
+// pixel (CV_8UC3 of the image's size); empty when the backdrop is even (one colour then).
+cv::Mat UnevenBackdrop(const cv::Mat& bgr, const cv::Mat& roi) {
   cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
-  if (box.area() == 0) box = cv::Rect(0, 0, size.width, size.height);
-  std::vector<cv::Point> points;
-  for (int x = box.x; x < box.x + box.width; ++x) {
-    points.emplace_back(x, box.y);
-    if (box.height > 1) points.emplace_back(x, box.y + box.height - 1);
-  }
-  for (int y = box.y + 1; y + 1 < box.y + box.height; ++y) {
-    points.emplace_back(box.x, y);
-    if (box.width > 1) points.emplace_back(box.x + box.width - 1, y);
-  }
-  return points;
+  if (box.area() == 0) box = cv::Rect(0, 0, bgr.cols, bgr.rows);
+  const std::optional<BackdropSurface> surface = BackdropSurface::FitToOutline(bgr, box);
+  if (!surface || !(surface->Rise() > kMinBackdropSlope)) return {};
+  return surface->Image(bgr.size());
 }
 
-// The backdrop graphcut cuts `bgr` (CV_8UC3) against: `key` (1x1), or where the outline of the
-// region of interest shows the backdrop lit unevenly (a plane fitted to each channel of it rises
-// more than kMinBackdropSlope levels across the rectangle), that plane at every pixel (CV_8UC3 of
-// the image's size). Each plane is fitted by least squares, then twice again to the pixels within
-// 3 robust sigmas (1.4826 MAD, at least 2 levels) of the last fit, so that an object or a stand
-// crossing the outline does not tilt it.
-cv::Mat BackdropAcross(const cv::Mat& bgr, const cv::Scalar& key, const cv::Mat& roi) {
-  cv::Mat one(1, 1, CV_8UC3, key);
-  const std::vector<cv::Point> points = OutlineOf(bgr.size(), roi);
-  if (points.size() < 16) return one;
-  const cv::Rect box = cv::boundingRect(points);
-  // Coordinates centred on the rectangle and scaled to +-1 (a well-conditioned fit).
-  const double cx = box.x + 0.5 * (box.width - 1), cy = box.y + 0.5 * (box.height - 1);
-  const double sx = std::max(1.0, 0.5 * (box.width - 1)),
-               sy = std::max(1.0, 0.5 * (box.height - 1));
-  std::array<Eigen::Vector3d, 3> planes;
-  double rise = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    Eigen::Vector3d plane(key[c], 0.0, 0.0);
-    double limit = std::numeric_limits<double>::infinity();
-    for (int round = 0; round < 3; ++round) {
-      Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-      std::vector<double> residuals;
-      residuals.reserve(points.size());
-      for (const cv::Point& p : points) {
-        const Eigen::Vector3d row(1.0, (p.x - cx) / sx, (p.y - cy) / sy);
-        const double value = bgr.at<cv::Vec3b>(p)[c];
-        const double residual = value - plane.dot(row);
-        if (std::abs(residual) > limit) continue;
-        normal += row * row.transpose();
-        rhs += value * row;
-      }
-      const Eigen::Vector3d fitted = normal.ldlt().solve(rhs);
-      if (!fitted.allFinite()) break;
-      plane = fitted;
-      for (const cv::Point& p : points) {
-        const Eigen::Vector3d row(1.0, (p.x - cx) / sx, (p.y - cy) / sy);
-        residuals.push_back(std::abs(bgr.at<cv::Vec3b>(p)[c] - plane.dot(row)));
-      }
-      const auto middle = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
-      std::nth_element(residuals.begin(), middle, residuals.end());
-      limit = std::max(2.0, 3.0 * 1.4826 * *middle);
-    }
-    planes[static_cast<std::size_t>(c)] = plane;
-    rise = std::max(rise, 2.0 * (std::abs(plane[1]) + std::abs(plane[2])));
-  }
-  if (!(rise > kMinBackdropSlope)) return one;
-  // Row by row: the first row's values, then each next one a row's step more (floats).
-  cv::Mat row(1, bgr.cols, CV_32FC3);
-  for (int x = 0; x < bgr.cols; ++x) {
-    const Eigen::Vector3d at(1.0, (x - cx) / sx, -cy / sy);
-    for (int c = 0; c < 3; ++c) {
-      row.at<cv::Vec3f>(0, x)[c] = static_cast<float>(planes[static_cast<std::size_t>(c)].dot(at));
-    }
-  }
-  const cv::Scalar step(planes[0][2] / sy, planes[1][2] / sy, planes[2][2] / sy);
-  cv::Mat out(bgr.size(), CV_8UC3);
-  for (int y = 0; y < out.rows; ++y) {
-    row.convertTo(out.row(y), CV_8UC3);
-    row += step;
-  }
+// `bgr` with the unevenness of `backdrop` (CV_8UC3, both of one size) taken out: bgr - backdrop +
+// `level`, saturated.
+cv::Mat Evened(const cv::Mat& bgr, const cv::Mat& backdrop, const cv::Scalar& level) {
+  cv::Mat difference;
+  cv::subtract(bgr, backdrop, difference, cv::noArray(), CV_16SC3);
+  difference += level;
+  cv::Mat out;
+  difference.convertTo(out, CV_8UC3);
   return out;
 }
 
@@ -200,8 +142,11 @@ class PipelineSegmenter final : public Segmenter {
                                  ? cv::Scalar(options_.backdrop_bgr[0], options_.backdrop_bgr[1],
                                               options_.backdrop_bgr[2])
                                  : EstimateBackdropColour(bgr, roi);
-      return SegmentByCut(bgr, BackdropAcross(bgr, key, roi), Luma(key) >= kShadowModelMinLuma, roi,
-                          factor);
+      const bool shadows = Luma(key) >= kShadowModelMinLuma;
+      const cv::Mat uneven = UnevenBackdrop(bgr, roi);
+      if (uneven.empty())
+        return SegmentByCut(bgr, cv::Mat(1, 1, CV_8UC3, key), shadows, roi, factor);
+      return SegmentByCut(bgr, uneven, shadows, roi, factor, &key);
     }
     if (method == "background") {
       if (auto ok = CheckBackground(image, background); !ok) return std::unexpected(ok.error());
@@ -236,11 +181,15 @@ class PipelineSegmenter final : public Segmenter {
   };
 
   // Segments with a graph cut seeded by the distance to `backdrop` (a 1x1 colour or a frame), at
-  // the work size, then places the edge at full size.
+  // the work size, then places the edge at full size. `even_to` (may be null): `backdrop` is a
+  // smooth backdrop's surface (UnevenBackdrop), and the colour models see the frame evened out
+  // to this colour (Evened): one backdrop colour, not a ramp whose bright end has the colours of
+  // an object's dim parts.
   cv::Mat SegmentByCut(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
-                       const cv::Mat& roi, int factor) const {
-    const cv::Mat bgr_w = Reduced(bgr, factor);
+                       const cv::Mat& roi, int factor, const cv::Scalar* even_to = nullptr) const {
     const cv::Mat backdrop_w = backdrop.size() == bgr.size() ? Reduced(backdrop, factor) : backdrop;
+    const cv::Mat bgr_w = Reduced(bgr, factor);
+    const cv::Mat colours_w = even_to != nullptr ? Evened(bgr_w, backdrop_w, *even_to) : bgr_w;
     const cv::Mat roi_w = ReducedRoi(roi, factor);
     ScoredLevels scored;
     scored.score = BackdropDistance(bgr_w, backdrop_w, shadows);
@@ -253,7 +202,8 @@ class PipelineSegmenter final : public Segmenter {
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(
-        bgr_w, scored.score, TrimapFromScore(bgr_w, scored.score, scored.levels, roi_w, cut), cut);
+        colours_w, scored.score,
+        TrimapFromScore(colours_w, scored.score, scored.levels, roi_w, cut), cut);
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
     cv::Mat mask = Enlarged(mask_w, factor, BackdropDistance(bgr, backdrop, shadows),
@@ -540,6 +490,9 @@ cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size) {
   return roi;
 }
 
+// The shadow model's allowance for noise in a clipped channel (BackdropDistance).
+constexpr int kClippedSlackLevels = 12;
+
 cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows) {
   // sqrt(i) rounded and saturated, for the squared distances that stay below 255^2.
   static const std::vector<std::uint8_t> root = [] {
@@ -572,12 +525,22 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
       const int dist2 = d0 * d0 + d1 * d1 + d2 * d2;
       std::uint8_t score = root[static_cast<std::size_t>(std::min(dist2, kMaxSquare))];
       // A shadow: the backdrop's colour scaled by a (0.35..1.1); only its chroma counts, twice
-      // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2).
-      const int norm2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+      // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2). One channel of the backdrop at 255 and the
+      // others below is clipped (a white blown out in red under warm light): its true level is
+      // 255 or more, so a and the chroma come from the other two, and the pixel's level there
+      // need only be at least a 255 (less a noise allowance). (Every channel at 255 is a white
+      // blown out evenly, and its shadows are grey: the key as it is.)
+      int known[3] = {k[0] < 255, k[1] < 255, k[2] < 255};
+      if (known[0] + known[1] + known[2] != 2) known[0] = known[1] = known[2] = 1;
+      const int norm2 = known[0] * k[0] * k[0] + known[1] * k[1] * k[1] + known[2] * k[2] * k[2];
       if (norm2 > 900) {
-        const int dot = c[0] * k[0] + c[1] * k[1] + c[2] * k[2];
-        if (20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
-          const int c2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+        const int dot = known[0] * c[0] * k[0] + known[1] * c[1] * k[1] + known[2] * c[2] * k[2];
+        bool consistent = true;
+        for (int i = 0; i < 3; ++i) {
+          if (!known[i]) consistent &= (c[i] + kClippedSlackLevels) * norm2 >= 255 * dot;
+        }
+        if (consistent && 20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
+          const int c2 = known[0] * c[0] * c[0] + known[1] * c[1] * c[1] + known[2] * c[2] * c[2];
           const float off2 = std::max(0.0f, static_cast<float>(c2) - static_cast<float>(dot) *
                                                                          static_cast<float>(dot) /
                                                                          static_cast<float>(norm2));

@@ -3,18 +3,21 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_read.h"
+#include "capture/segment/backdrop_surface.h"
 
 namespace revolve::capture {
 namespace {
 
 constexpr double kDarkLuma = 80.0;
 constexpr double kLightLuma = 170.0;
-constexpr double kColouredChroma = 30.0;
+// As kColouredBackdropChroma (capture/segment/segmenter.cc): a green or blue screen, not a cream.
+constexpr double kColouredChroma = 40.0;
 constexpr int kStillLevels = 12;
 constexpr double kStillOutline = 0.9;
 constexpr double kStillGain = 0.1;
@@ -157,13 +160,21 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   }
   std::array<std::vector<std::uint8_t>, 3> sorted = all;
   for (int k = 0; k < 3; ++k) survey.bgr[k] = Median(sorted[k]);
+  // Uniform: within 12 levels of the smooth surface fitted to its frame's outline (even light,
+  // light from one side and vignetting are even; a cloth's folds and texture are not), or of the
+  // median colour where no surface fits.
   std::size_t uniform = 0;
-  for (std::size_t i = 0; i < all[0].size(); ++i) {
-    int worst = 0;
-    for (int k = 0; k < 3; ++k) {
-      worst = std::max(worst, std::abs(int(all[k][i]) - static_cast<int>(survey.bgr[k])));
+  for (const cv::Mat& frame : frames) {
+    const std::optional<BackdropSurface> surface =
+        BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, size.width, size.height));
+    for (const cv::Point& p : points) {
+      const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
+      const cv::Vec3d expected =
+          surface ? surface->At(p.x, p.y) : cv::Vec3d(survey.bgr[0], survey.bgr[1], survey.bgr[2]);
+      double worst = 0.0;
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - expected[k]));
+      uniform += worst <= kStillLevels;
     }
-    uniform += worst <= kStillLevels;
   }
   survey.outline_uniformity = all[0].empty() ? 0.0 : double(uniform) / double(all[0].size());
   const double b = survey.bgr[0], g = survey.bgr[1], r = survey.bgr[2];
@@ -237,7 +248,7 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
     const std::string seen = fmt::format(
         "a {} backdrop (outline median B G R {:.0f} {:.0f} {:.0f}, luma {:.0f}, chroma {:.0f}); "
         "{:.0f} % of the outline keeps its colour across the frames, {:.0f} % is within 12 "
-        "levels of the median",
+        "levels of a smooth fit to its frame's outline",
         survey.kind, survey.bgr[0], survey.bgr[1], survey.bgr[2], survey.luma, survey.chroma,
         100.0 * survey.outline_stillness, 100.0 * survey.outline_uniformity);
     if (survey.kind == "coloured") {
@@ -259,16 +270,12 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
     }
   }
   run.method = result.method;
-  if (run.method == "graphcut" && run.backdrop_bgr.empty()) {
-    run.backdrop_bgr = {survey.bgr[0], survey.bgr[1], survey.bgr[2]};
-  }
   Expected<cv::Mat> background = ReadBackground(options, frames.front().size());
   if (!background) return std::unexpected(background.error());
   if (run.method == "background" && background->empty()) {
     // No frame of the empty scene: learn it from graphcut's masks.
     SegmentOptions first = run;
     first.method = "graphcut";
-    first.backdrop_bgr = {survey.bgr[0], survey.bgr[1], survey.bgr[2]};
     Expected<std::vector<cv::Mat>> rough = SegmentAll(frames, first, cv::Mat());
     if (!rough) return std::unexpected(rough.error());
     *background = LearnBackdrop(frames, *rough, kLearnMarginPx, survey.bgr);
@@ -327,7 +334,7 @@ bool StopBackdropLearner::Add(const cv::Mat& frame, const cv::Mat& mask) {
   const BackdropSurvey survey = SurveyBackdrop(frames_);
   const std::string seen = fmt::format(
       "{} stops: a {} backdrop, {:.0f} % of the outline keeps its colour, {:.0f} % is within 12 "
-      "levels of the median",
+      "levels of a smooth fit to its frame's outline",
       frames_.size(), survey.kind, 100.0 * survey.outline_stillness,
       100.0 * survey.outline_uniformity);
   const bool learn = always_ || BackdropWorthLearning(survey, frames_.size());

@@ -24,8 +24,10 @@ struct BackdropSurvey {
   // the frames) in the median frame: near 1 when the camera stands still and the backdrop stays
   // (a turntable), low when the camera moves (a gantry, a hand-held camera).
   double outline_stillness = 0.0;
-  // Share of the outline samples within 12 levels of the median outline colour: near 1 on an
-  // even backdrop, where learning it per pixel gains nothing.
+  // Share of the outline samples within 12 levels of the smooth surface fitted to their frame's
+  // outline (BackdropSurface; the median colour where none fits): near 1 on an even backdrop,
+  // also lit from one side or vignetted, where learning it per pixel gains nothing (graphcut cuts
+  // against the surface).
   double outline_uniformity = 0.0;
   std::string kind;  // "dark" (luma < 80), "light" (> 170), "grey", or "coloured"
 };
