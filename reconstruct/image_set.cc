@@ -256,8 +256,15 @@ cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size) 
   return whole;
 }
 
+std::string KindName(ImageKind kind, bool plural) {
+  const char* name = kind == ImageKind::kSilhouette ? "binary silhouette"
+                     : kind == ImageKind::kCutOut   ? "cut-out photo"
+                                                    : "photo";
+  return plural ? std::string(name) + "s" : std::string(name);
+}
+
 Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max_pixels,
-                             std::optional<cv::Size> expected_size) {
+                             std::optional<cv::Size> expected_size, cv::Mat* alpha) {
   ImageReadOptions read;
   read.imread_flags = cv::IMREAD_UNCHANGED;
   read.max_pixels = max_pixels;
@@ -270,7 +277,9 @@ Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max
                      fmt::format("{}: {}-bit samples; 8-bit images expected", path.string(),
                                  image.depth() == CV_16U ? 16 : 32));
   }
+  if (alpha != nullptr) alpha->release();
   if (image.channels() == 4) {
+    if (alpha != nullptr) cv::extractChannel(image, *alpha, 3);
     cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
   } else if (image.channels() != 1 && image.channels() != 3) {
     return MakeError(ErrorCode::kBadInput, fmt::format("{}: {} channels; grey or colour expected",
@@ -295,7 +304,9 @@ struct DecodedImage {
 DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOptions& options,
                             std::optional<cv::Size> expected_size, const std::string& size_source) {
   DecodedImage result;
-  Expected<cv::Mat> pixels = ReadImage8(image->path, options.max_image_pixels, expected_size);
+  cv::Mat alpha;
+  Expected<cv::Mat> pixels =
+      ReadImage8(image->path, options.max_image_pixels, expected_size, &alpha);
   if (!pixels) {
     result.error = pixels.error();
     return result;
@@ -310,8 +321,15 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
                        .error();
     return result;
   }
-  std::optional<cv::Mat> silhouette = BinarySilhouette(*pixels);
-  result.kind = silhouette ? ImageKind::kSilhouette : ImageKind::kPhoto;
+  // Some transparent pixel: cut out (whatever its colours are); else a binary image: a
+  // silhouette; else a photo.
+  double least_alpha = 255.0;
+  if (!alpha.empty()) cv::minMaxLoc(alpha, &least_alpha);
+  const bool cut_out = least_alpha < 255.0;
+  std::optional<cv::Mat> silhouette = cut_out ? std::nullopt : BinarySilhouette(*pixels);
+  result.kind = cut_out      ? ImageKind::kCutOut
+                : silhouette ? ImageKind::kSilhouette
+                             : ImageKind::kPhoto;
   if (silhouette) {
     image->mask = std::move(*silhouette);
   } else {
@@ -321,8 +339,13 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
       image->image = std::move(*pixels);
     }
     if (options.on_photo) options.on_photo(index, image->image);
-    if (!options.segment_photos) return result;
-    image->mask = SegmentPhoto(image->image, options.segmentation);
+    if (cut_out) {
+      image->mask = alpha >= kCutOutMinAlpha;
+    } else if (!options.segment_photos) {
+      return result;
+    } else {
+      image->mask = SegmentPhoto(image->image, options.segmentation);
+    }
     if (options.frame_margin_px >= 0) {
       const cv::Rect window = FrameWindow(image->mask, options.frame_margin_px);
       image->image = image->image(window).clone();
@@ -368,14 +391,15 @@ std::optional<SetSize> MajoritySize(const std::vector<SetImage>& images, std::in
 
 // The kind most images are; a tie goes to the first image's.
 ImageKind MajorityKind(const std::vector<DecodedImage>& decoded) {
-  const auto silhouettes = std::count_if(decoded.begin(), decoded.end(), [](const DecodedImage& d) {
-    return d.kind == ImageKind::kSilhouette;
-  });
-  const auto photos = static_cast<std::ptrdiff_t>(decoded.size()) - silhouettes;
-  if (silhouettes != photos) {
-    return silhouettes > photos ? ImageKind::kSilhouette : ImageKind::kPhoto;
+  const auto count = [&](ImageKind kind) {
+    return std::count_if(decoded.begin(), decoded.end(),
+                         [&](const DecodedImage& d) { return d.kind == kind; });
+  };
+  ImageKind best = decoded[0].kind;
+  for (const ImageKind kind : {ImageKind::kSilhouette, ImageKind::kPhoto, ImageKind::kCutOut}) {
+    if (count(kind) > count(best)) best = kind;
   }
-  return decoded[0].kind;
+  return best;
 }
 
 }  // namespace
@@ -485,20 +509,20 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
     if (decoded[i].kind != set.kind) {
       return MakeError(
           ErrorCode::kBadInput,
-          fmt::format("{}: a {} among {} (all images of a set must be binary silhouettes, or all "
-                      "photos)",
-                      image.path.string(),
-                      decoded[i].kind == ImageKind::kSilhouette ? "binary silhouette" : "photo",
-                      set.kind == ImageKind::kSilhouette ? "binary silhouettes" : "photos"));
+          fmt::format("{}: a {} among {} (all images of a set must be binary silhouettes, all "
+                      "photos, or all cut-out photos: with transparent pixels around the object)",
+                      image.path.string(), KindName(decoded[i].kind), KindName(set.kind, true)));
     }
     if (decoded[i].empty_mask) {
-      return MakeError(ErrorCode::kBadInput,
-                       fmt::format("{}: the silhouette is empty ({})", image.path.string(),
-                                   set.kind == ImageKind::kSilhouette
-                                       ? "no object pixel"
-                                       : fmt::format("no pixel brighter than {} on the black "
-                                                     "background",
-                                                     options.segmentation.threshold)));
+      return MakeError(
+          ErrorCode::kBadInput,
+          fmt::format("{}: the silhouette is empty ({})", image.path.string(),
+                      set.kind == ImageKind::kSilhouette ? std::string("no object pixel")
+                      : set.kind == ImageKind::kCutOut
+                          ? fmt::format("no pixel's alpha reaches {}: transparent everywhere",
+                                        kCutOutMinAlpha)
+                          : fmt::format("no pixel brighter than {} on the black background",
+                                        options.segmentation.threshold)));
     }
   }
   return set;

@@ -8,11 +8,15 @@
 // files. Without a pattern every image file of the folder (.png .tif .tiff .jpg .jpeg .bmp .pgm
 // .ppm, any case) is taken, in file-name order, stop k at k * step_deg.
 //
-// Two kinds of image, told apart per file and required to agree across the set:
+// Three kinds of image, told apart per file and required to agree across the set:
 //  - binary silhouettes (the thesis's input): one grey channel (or three equal ones) holding only
 //    two levels (0 and 255, or 0 and 1). Object white on black, or inverted: the polarity is
 //    taken from the image border, which must be mostly background. The mask is the image; there
 //    is no colour for texture.
+//  - cut-out photos: an alpha channel (PNG, TIFF) with transparent pixels, as background
+//    removal tools and phones' "lift the subject" export them. The mask is where alpha reaches
+//    kCutOutMinAlpha (35 %: the object's partly covered rim is object, as the segmenter places
+//    its edges), whatever colour the transparent pixels hold; the colours are kept for texture.
 //  - photos on a black background: the mask is the pixels where any channel exceeds
 //    `threshold`, then a closing (`close_px`), an opening (`open_px`), components smaller than
 //    `min_component_fraction` of the largest dropped, and holes up to `max_hole_area_px` filled.
@@ -50,7 +54,7 @@ struct ImageSetOptions {
   double step_deg = 10.0;  // angle between consecutive stops (> 0)
   PhotoSegmentation segmentation;
   // false: photos are loaded with an empty mask, for the caller to segment
-  // (capture::SegmentImageSet); silhouettes keep theirs.
+  // (capture::SegmentImageSet); silhouettes and cut-out photos keep theirs.
   bool segment_photos = true;
   // Larger images are refused from their headers, before decoding (base/image_read.h).
   std::int64_t max_image_pixels = kDefaultMaxImagePixels;
@@ -62,7 +66,14 @@ struct ImageSetOptions {
   std::function<void(std::size_t index, const cv::Mat& photo)> on_photo;
 };
 
-enum class ImageKind { kSilhouette, kPhoto };
+enum class ImageKind { kSilhouette, kPhoto, kCutOut };
+
+// A cut-out photo's alpha from which a pixel is object (see the file comment).
+inline constexpr int kCutOutMinAlpha = 90;
+
+// What an image of `kind` is called in messages: "binary silhouette", "photo", "cut-out photo";
+// `plural` adds the s.
+std::string KindName(ImageKind kind, bool plural = false);
 
 struct SetImage {
   std::filesystem::path path;
@@ -71,7 +82,7 @@ struct SetImage {
   // order.
   int index = 0;
   double angle_deg = 0.0;  // index * step_deg
-  cv::Mat image;           // CV_8UC3 BGR for photos (or a window of it); empty for silhouettes
+  cv::Mat image;           // CV_8UC3 BGR for (cut-out) photos (or a window); empty for silhouettes
   cv::Point image_origin;  // the photo's pixel that is image's (0, 0)
   cv::Mat mask;            // CV_8UC1, 255 = object (empty: a photo not segmented here)
 };
@@ -124,18 +135,19 @@ cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size);
 
 // Loads the set. Errors name the file: not_found (no folder, no image in it, no file matching
 // the pattern, a stop missing between the first and the last: the expected file name), bad_input
-// (an unreadable or non-8-bit image, sizes that differ, silhouettes mixed with photos, an empty
-// silhouette, two files for one stop, an {angle} that is not a multiple of step_deg, a bad
-// pattern or step).
+// (an unreadable or non-8-bit image, sizes that differ, kinds mixed (silhouettes, photos, cut-out
+// photos), an empty silhouette, two files for one stop, an {angle} that is not a multiple of
+// step_deg, a bad pattern or step).
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options);
 
-// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha), its
-// header checked first (base/image_read.h: over `max_pixels`, of another size than
-// `expected_size`, cut short or damaged: refused before decoding). Errors: not_found (also a
-// dangling symbolic link), or bad_input naming the file (not an image OpenCV can decode, not
-// 8-bit, the checks above).
+// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha, into
+// *alpha when given: CV_8UC1, left empty for an image without one), its header checked first
+// (base/image_read.h: over `max_pixels`, of another size than `expected_size`, cut short or
+// damaged: refused before decoding). Errors: not_found (also a dangling symbolic link), or
+// bad_input naming the file (not an image OpenCV can decode, not 8-bit, the checks above).
 Expected<cv::Mat> ReadImage8(const std::filesystem::path& path,
                              std::int64_t max_pixels = kDefaultMaxImagePixels,
-                             std::optional<cv::Size> expected_size = std::nullopt);
+                             std::optional<cv::Size> expected_size = std::nullopt,
+                             cv::Mat* alpha = nullptr);
 
 }  // namespace revolve::reconstruct

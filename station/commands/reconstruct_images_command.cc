@@ -171,7 +171,7 @@ class ImagesRun {
     thumbnails_.resize(set_.images.size());
     photos_ = set_.kind == rc::ImageKind::kPhoto;
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
-                        photos_ ? "photos" : "binary silhouettes", set_.width_px, set_.height_px,
+                        rc::KindName(set_.kind, true), set_.width_px, set_.height_px,
                         options_.images.string());
     for (rc::SetImage& image : set_.images) {
       names_.push_back(image.file_name);
@@ -231,11 +231,17 @@ class ImagesRun {
         });
       }
     } else {
+      const bool cut_out = set_.kind == rc::ImageKind::kCutOut;
       report_["segmentation"] = {
-          {"method", photos_ ? "threshold" : "none (binary silhouettes)"},
+          {"method", photos_   ? "threshold"
+                     : cut_out ? "alpha"
+                               : "none (binary silhouettes)"},
           {"reason",
-           photos_ ? fmt::format("--segment threshold: any channel above {}", options_.threshold)
-                   : "the images are silhouettes already"}};
+           photos_   ? fmt::format("--segment threshold: any channel above {}", options_.threshold)
+           : cut_out ? fmt::format("the photos are cut out: each one's alpha channel is its mask "
+                                   "(object where it reaches {} of 255)",
+                                   rc::kCutOutMinAlpha)
+                     : "the images are silhouettes already"}};
     }
     return {};
   }
@@ -264,7 +270,7 @@ class ImagesRun {
   Expected<void> CamerasAndVolume() {
     nlohmann::json input = {
         {"images", options_.images.string()}, {"pattern", options_.pattern},
-        {"count", set_.images.size()},        {"kind", photos_ ? "photos" : "binary silhouettes"},
+        {"count", set_.images.size()},        {"kind", rc::KindName(set_.kind, true)},
         {"width_px", set_.width_px},          {"height_px", set_.height_px}};
     if (photos_ && legacy_threshold_) input["threshold"] = options_.threshold;
     if (thesis_mode_) {

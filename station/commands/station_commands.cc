@@ -51,7 +51,8 @@ class StationCommandsImpl final : public StationCommands {
     reconstruct_->add_option("--formats", formats_, "Model formats: ply,obj,stl,glb,wrl")
         ->delimiter(',');
     reconstruct_->add_option("--images", images_.images,
-                             "A folder of images or silhouettes instead of a scan folder");
+                             "A folder of photos, cut-out photos (PNG with alpha) or silhouettes "
+                             "instead of a scan folder");
     reconstruct_->add_option("--pattern", images_.pattern,
                              "With --images: file names with {angle} or {index}, e.g. "
                              "bw_shoe{angle}.tif (default: every image, sorted by name)");

@@ -6,7 +6,8 @@
 // - a black backdrop with the object's lower third in deep shadow (15 % of its brightness);
 // - both: the shadowed object on a stand over black;
 // - the shadowed object over black lit from one side (0 to 20 levels across) with a noisier
-//   sensor (sigma 6).
+//   sensor (sigma 6);
+// - photos cut out by a background remover (PNG with alpha), transparent over a cluttered room.
 // The model is reprojected into every view and compared with the true silhouettes (bar 0.975),
 // and revolve's own masks must agree with its model (report.json, bar 0.95).
 #include <gtest/gtest.h>
@@ -37,7 +38,9 @@ namespace rc = revolve::reconstruct;
 
 constexpr int kViews = 12;
 
-enum class Backdrop { kDarkWithStand, kBlackWithShadows, kBlackWithShadowsOnAStand };
+// kCutOut: photos cut out by a background remover, the object opaque and everything else
+// transparent over a cluttered room's colours (random), as PNG with alpha.
+enum class Backdrop { kDarkWithStand, kBlackWithShadows, kBlackWithShadowsOnAStand, kCutOut };
 
 struct SetCase {
   Backdrop backdrop;
@@ -102,6 +105,15 @@ WrittenSet WriteSet(const SetCase& set, const fs::path& dir) {
     }
     image = test_support::WithNoise(image, set.uneven_and_noisy ? 6.0 : 3.0,
                                     static_cast<std::uint64_t>(100 + k));
+    if (set.backdrop == Backdrop::kCutOut) {
+      cv::Mat room(size, CV_8UC3);
+      cv::randu(room, cv::Scalar::all(0), cv::Scalar::all(256));
+      render.image.copyTo(room, render.true_mask);
+      std::vector<cv::Mat> channels;
+      cv::split(room, channels);
+      channels.push_back(render.true_mask);
+      cv::merge(channels, image);
+    }
     const std::string name = fmt::format("view_{:02}.png", k);
     EXPECT_TRUE(cv::imwrite((dir / name).string(), image));
     const std::optional<View> view = (*camera)->KnownView(angle_deg);
@@ -150,6 +162,10 @@ TEST_P(ImagesOnRealBackdrops, TheModelMatchesTheTruthAndTheMasksTheModel) {
     least = std::min(least, iou);
   }
   const double mean = sum / kViews;
+  if (GetParam().backdrop == Backdrop::kCutOut) {
+    EXPECT_EQ(report["segmentation"]["method"], "alpha");
+    EXPECT_EQ(report["input"]["kind"], "cut-out photos");
+  }
   std::printf("%s %s (%s): model vs truth mean IoU %.4f (min %.4f); own masks vs model %.4f\n",
               GetParam().name.c_str(), GetParam().object.c_str(),
               report["segmentation"]["method"].get<std::string>().c_str(), mean, least, own);
@@ -167,7 +183,8 @@ INSTANTIATE_TEST_SUITE_P(
                       SetCase{Backdrop::kBlackWithShadows, "black_with_shadows_unevenly_lit_noisy",
                               "vase", cv::Scalar(), true},
                       SetCase{Backdrop::kBlackWithShadowsOnAStand, "black_with_shadows_on_a_stand",
-                              "vase", cv::Scalar(96, 92, 98)}),
+                              "vase", cv::Scalar(96, 92, 98)},
+                      SetCase{Backdrop::kCutOut, "cut_out", "vase"}),
     [](const auto& p) { return p.param.name + "_" + p.param.object; });
 
 }  // namespace

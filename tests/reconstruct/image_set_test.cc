@@ -1,5 +1,5 @@
 // Image folders as input (reconstruct/image_set.h): patterns, ordering, binary silhouettes of
-// either polarity, photo segmentation, and the errors that name the file.
+// either polarity, cut-out photos, photo segmentation, and the errors that name the file.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 
+#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -269,6 +270,71 @@ TEST_F(ImageSetFolder, ErrorsNameTheFile) {
   ASSERT_FALSE(set.has_value());
   EXPECT_EQ(set.error().code, ErrorCode::kNotFound);
   EXPECT_FALSE(LoadImageSet(dir_ / "missing", ImageSetOptions{}).has_value());
+}
+
+// A cut-out photo (BGRA): an object opaque (a circle, its rim at half alpha), the rest transparent
+// over colours that are not black (what a background remover leaves behind).
+cv::Mat CutOut() {
+  cv::Mat bgra(48, 64, CV_8UC4);
+  cv::randu(bgra, cv::Scalar(0, 0, 0, 0), cv::Scalar(256, 256, 256, 1));  // alpha 0
+  cv::circle(bgra, {30, 22}, 12, cv::Scalar(40, 120, 200, 255), cv::FILLED);
+  cv::circle(bgra, {30, 22}, 12, cv::Scalar(40, 120, 200, 128), 1);  // the rim, half covered
+  return bgra;
+}
+
+// `bgra` with its alpha set to `alpha` everywhere.
+cv::Mat WithAlpha(const cv::Mat& bgra, int alpha) {
+  cv::Mat channels[4];
+  cv::split(bgra, channels);
+  channels[3].setTo(alpha);
+  cv::Mat out;
+  cv::merge(channels, 4, out);
+  return out;
+}
+
+TEST_F(ImageSetFolder, CutOutPhotosAreMaskedByTheirAlpha) {
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(cv::imwrite((dir_ / fmt::format("view{}.png", i)).string(), CutOut()));
+  }
+  ImageSetOptions options;
+  options.segment_photos = false;  // as reconstruct --images loads a set
+  Expected<ImageSet> set = LoadImageSet(dir_, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  EXPECT_EQ(set->kind, ImageKind::kCutOut);
+  const cv::Mat truth = [] {
+    cv::Mat mask(48, 64, CV_8UC1, cv::Scalar(0));
+    cv::circle(mask, {30, 22}, 12, cv::Scalar(255), cv::FILLED);
+    return mask;
+  }();
+  for (const SetImage& image : set->images) {
+    EXPECT_EQ(cv::countNonZero(image.mask != truth), 0) << image.file_name;  // the rim included
+    ASSERT_EQ(image.image.type(), CV_8UC3);  // the colours kept for texture
+    EXPECT_EQ(image.image.at<cv::Vec3b>(22, 30), cv::Vec3b(40, 120, 200));
+  }
+  // Opaque everywhere: an ordinary photo, its alpha ignored.
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(
+        cv::imwrite((dir_ / fmt::format("view{}.png", i)).string(), WithAlpha(CutOut(), 255)));
+  }
+  set = LoadImageSet(dir_, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  EXPECT_EQ(set->kind, ImageKind::kPhoto);
+  // One cut-out among photos is named as such.
+  ASSERT_TRUE(cv::imwrite((dir_ / "view2.png").string(), CutOut()));
+  set = LoadImageSet(dir_, options);
+  ASSERT_FALSE(set.has_value());
+  EXPECT_NE(set.error().message.find("view2.png: a cut-out photo among photos"), std::string::npos)
+      << set.error().message;
+  // A cut-out transparent everywhere has no object.
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(cv::imwrite((dir_ / fmt::format("view{}.png", i)).string(), CutOut()));
+  }
+  ASSERT_TRUE(cv::imwrite((dir_ / "view1.png").string(), WithAlpha(CutOut(), 40)));
+  set = LoadImageSet(dir_, options);
+  ASSERT_FALSE(set.has_value());
+  EXPECT_NE(set.error().message.find("view1.png: the silhouette is empty (no pixel's alpha"),
+            std::string::npos)
+      << set.error().message;
 }
 
 }  // namespace
