@@ -272,10 +272,16 @@ Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max
   Expected<cv::Mat> decoded = ReadImageFile(path, read);
   if (!decoded) return std::unexpected(decoded.error());
   cv::Mat image = std::move(*decoded);
+  // 16-bit samples (a raw converter's TIFF, a 16-bit PNG) scaled to 8 bits: 65535 is 255.
+  if (image.depth() == CV_16U) image.convertTo(image, CV_8U, 1.0 / 257.0);
   if (image.depth() != CV_8U) {
     return MakeError(ErrorCode::kBadInput,
-                     fmt::format("{}: {}-bit samples; 8-bit images expected", path.string(),
-                                 image.depth() == CV_16U ? 16 : 32));
+                     fmt::format("{}: {} samples; 8-bit or 16-bit images expected (save the "
+                                 "images as 8-bit or 16-bit PNG, TIFF or JPEG)",
+                                 path.string(),
+                                 image.depth() == CV_32F   ? "32-bit floating-point"
+                                 : image.depth() == CV_64F ? "64-bit floating-point"
+                                                           : "signed or 32-bit integer"));
   }
   if (alpha != nullptr) alpha->release();
   if (image.channels() == 4) {

@@ -135,12 +135,13 @@ cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size);
 
 // Loads the set. Errors name the file: not_found (no folder, no image in it, no file matching
 // the pattern, a stop missing between the first and the last: the expected file name), bad_input
-// (an unreadable or non-8-bit image, sizes that differ, kinds mixed (silhouettes, photos, cut-out
-// photos), an empty silhouette, two files for one stop, an {angle} that is not a multiple of
-// step_deg, a bad pattern or step).
+// (an unreadable image or one neither 8-bit nor 16-bit, sizes that differ, kinds mixed
+// (silhouettes, photos, cut-out photos), an empty silhouette, two files for one stop, an {angle}
+// that is not a multiple of step_deg, a bad pattern or step).
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options);
 
-// Reads one image file as LoadImageSet does: 8-bit grey or BGR (BGRA loses its alpha, into
+// Reads one image file as LoadImageSet does: 8-bit grey or BGR (16-bit samples scaled to 8 bits;
+// BGRA loses its alpha, into
 // *alpha when given: CV_8UC1, left empty for an image without one), its header checked first
 // (base/image_read.h: over `max_pixels`, of another size than `expected_size`, cut short or
 // damaged: refused before decoding). Errors: not_found (also a dangling symbolic link), or

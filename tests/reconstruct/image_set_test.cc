@@ -337,5 +337,46 @@ TEST_F(ImageSetFolder, CutOutPhotosAreMaskedByTheirAlpha) {
       << set.error().message;
 }
 
+// 16-bit images (a raw converter's TIFF, a 16-bit PNG) load as their 8-bit selves, cut-outs
+// included; floating-point samples are refused by name.
+TEST_F(ImageSetFolder, SixteenBitImagesAreScaledToEightBits) {
+  cv::Mat photo(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
+  cv::circle(photo, {30, 20}, 8, cv::Scalar(30, 140, 200), cv::FILLED);
+  cv::Mat deep;
+  photo.convertTo(deep, CV_16UC3, 257.0);
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(cv::imwrite((dir_ / fmt::format("view{}.tif", i)).string(), deep));
+  }
+  ImageSetOptions options;
+  options.segment_photos = false;
+  Expected<ImageSet> set = LoadImageSet(dir_, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  EXPECT_EQ(set->kind, ImageKind::kPhoto);
+  ASSERT_EQ(set->images[0].image.type(), CV_8UC3);
+  EXPECT_EQ(cv::norm(set->images[0].image, photo, cv::NORM_INF), 0.0);
+
+  cv::Mat cut_out;
+  CutOut().convertTo(cut_out, CV_16UC4, 257.0);
+  for (int i = 0; i < 3; ++i) {
+    fs::remove(dir_ / fmt::format("view{}.tif", i));
+    ASSERT_TRUE(cv::imwrite((dir_ / fmt::format("view{}.png", i)).string(), cut_out));
+  }
+  set = LoadImageSet(dir_, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  EXPECT_EQ(set->kind, ImageKind::kCutOut);
+  cv::Mat circle(48, 64, CV_8UC1, cv::Scalar(0));
+  cv::circle(circle, {30, 22}, 12, cv::Scalar(255), cv::FILLED);
+  EXPECT_EQ(cv::countNonZero(set->images[1].mask != circle), 0);
+
+  cv::Mat floating;
+  photo.convertTo(floating, CV_32FC3, 1.0 / 255.0);
+  fs::remove(dir_ / "view1.png");
+  ASSERT_TRUE(cv::imwrite((dir_ / "view1.tif").string(), floating));
+  set = LoadImageSet(dir_, options);
+  ASSERT_FALSE(set.has_value());
+  EXPECT_NE(set.error().message.find("view1.tif: 32-bit floating-point samples"), std::string::npos)
+      << set.error().message;
+}
+
 }  // namespace
 }  // namespace revolve::reconstruct
