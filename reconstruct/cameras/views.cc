@@ -32,13 +32,17 @@ struct CarveResult {
   bool touches = false;
 };
 
+// Views that must see a cell for tolerated misses to count (AutoVolumeOptions).
+constexpr int kMinViewsToOutvote = 8;
+
 // Whether the cell centre `x` survives (see AutoVolumeOptions). `first` names the view tried
 // first and becomes the view that carved `x`: a cell is carved whatever view carves it, and a
 // cell's neighbour is most often carved by the same view, so the views' order changes nothing
 // but the work.
 bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
-                  const Eigen::Vector3d& x, int seen_needed, std::size_t* first) {
+                  const Eigen::Vector3d& x, int seen_needed, int tolerated, std::size_t* first) {
   int seen = 0;
+  int misses = 0;
   for (std::size_t n = 0; n < views.size(); ++n) {
     const std::size_t v = n == 0 ? *first : (n <= *first ? n - 1 : n);
     const Matrix34d& p = views[v].pixel_from_object;
@@ -48,12 +52,13 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
     const double w = std::floor(h.y() / h.z() + 0.5);
     if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
     ++seen;
-    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
+    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0 &&
+        ++misses > tolerated) {
       *first = v;
       return false;
     }
   }
-  return seen >= seen_needed;
+  return seen >= seen_needed && (misses == 0 || seen >= kMinViewsToOutvote);
 }
 
 // Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
@@ -84,7 +89,7 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
     const auto survives = [&](int i, int j) {
       const Eigen::Vector3d x =
           result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
-      return CellSurvives(masks, views, x, seen_needed, &first);
+      return CellSurvives(masks, views, x, seen_needed, options.tolerated_misses, &first);
     };
     const auto add = [&](const Eigen::Vector3i& c) {
       if (!out.any) {

@@ -68,6 +68,10 @@ struct AutoVolumeOptions {
   // at least this fraction of the views (points outside most fields of view are not object).
   double min_seen_fraction = 0.5;
   double margin_cells = 1.5;  // padding around the surviving cells, in cells of the last pass
+  // A cell seen by at least 8 views survives when this many of them place it outside their
+  // silhouettes: one mask that lost a part of the object (a shadow cut away in one frame) does
+  // not cut the box short of it, so the silhouette consensus can find that mask out.
+  int tolerated_misses = 1;
 };
 
 struct AutoVolume {

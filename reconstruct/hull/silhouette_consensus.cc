@@ -15,6 +15,9 @@
 namespace revolve::reconstruct {
 namespace {
 
+// Other views needed for ConsensusOptions::tolerated_misses to apply.
+constexpr std::size_t kMinViewsToOutvote = 8;
+
 // Pixels one voxel spans at the box's middle in `view` (the longest of the three axes).
 double VoxelSpanPx(const View& view, const Eigen::Vector3d& middle, double voxel) {
   const auto project = [&](const Eigen::Vector3d& x) -> Eigen::Vector2d {
@@ -70,7 +73,9 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   HullSurfaceOptions midpoints;
   midpoints.sub_voxel = false;
   ParallelFor(0, masks.size(), [&](std::size_t i) {
-    const Mesh surface = hulls.Without(i, /*keep_views=*/false).ExtractSurface(midpoints);
+    const int tolerated = masks.size() - 1 >= kMinViewsToOutvote ? options.tolerated_misses : 0;
+    const Mesh surface =
+        hulls.Without(i, /*keep_views=*/false, tolerated).ExtractSurface(midpoints);
     const cv::Mat others = RenderSilhouette(surface, views[i], /*closed=*/true);
     // The midpoint surface lies within a voxel of the hull's: dilated by a voxel's span.
     const int radius =

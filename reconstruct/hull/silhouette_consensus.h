@@ -1,6 +1,7 @@
-// Silhouette consensus: each view's mask checked against the hull the other views carve. A pixel
-// of view i stays object only if its ray meets the hull of the other views (within a pixel), and
-// each view gets a confidence: how well its mask matches that hull's silhouette.
+// Silhouette consensus: each view's mask checked against the hull the other views carve (one of
+// them outvoted, ConsensusOptions::tolerated_misses). A pixel of view i stays object only if its
+// ray meets the hull of the other views (within a pixel), and each view gets a confidence: how
+// well its mask matches that hull's silhouette.
 //
 // Why: carving trusts every mask completely, so a view that lost part of the object (a shadow
 // cut away) carves it from the model, and a view that took in part of the backdrop (a stand, a
@@ -23,6 +24,10 @@ struct ConsensusOptions {
   // edges' midpoints: within a voxel of the continuous hull's) is dilated by this, or by a
   // voxel's projected span if that is more, before the cut.
   int tolerance_px = 1;
+  // The other views' hull keeps what this many of them carve when there are at least 8 of them:
+  // a view that lost part of the object (a shadow cut away in one frame) does not carve it from
+  // the hull the others are checked against, so they agree with one another and it disagrees.
+  int tolerated_misses = 1;
 };
 
 struct SilhouetteConsensus {

@@ -584,14 +584,23 @@ VisualHull::LeaveOneOut::LeaveOneOut(const VoxelGrid& grid, std::vector<Prepared
   });
 }
 
-VisualHull VisualHull::LeaveOneOut::Without(std::size_t i, bool keep_views) const {
+VisualHull VisualHull::LeaveOneOut::Without(std::size_t i, bool keep_views, int tolerated) const {
   VisualHull hull(grid_);
+  // carved[k]: the voxels at least k + 1 of the other views carve (bit-sliced counts, capped).
+  const std::size_t levels = static_cast<std::size_t>(std::max(0, tolerated)) + 1;
+  std::vector<std::vector<std::uint64_t>> carved(
+      levels, std::vector<std::uint64_t>(hull.bricks_.size(), 0));
   for (std::size_t j = 0; j < views_.size(); ++j) {
     if (j == i) continue;
     const std::vector<std::uint64_t>& survivors = survivors_[j];
-    for (std::size_t b = 0; b < hull.bricks_.size(); ++b) hull.bricks_[b] &= survivors[b];
+    for (std::size_t b = 0; b < hull.bricks_.size(); ++b) {
+      const std::uint64_t carves = ~survivors[b];
+      for (std::size_t k = levels - 1; k > 0; --k) carved[k][b] |= carved[k - 1][b] & carves;
+      carved[0][b] |= carves;
+    }
     if (keep_views) hull.views_.push_back(*views_[j].data_);
   }
+  for (std::size_t b = 0; b < hull.bricks_.size(); ++b) hull.bricks_[b] &= ~carved[levels - 1][b];
   hull.RebuildFlags();
   return hull;
 }

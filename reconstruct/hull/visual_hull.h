@@ -179,7 +179,9 @@ class VisualHull {
     std::size_t size() const { return views_.size(); }
     // Precondition: i < size(). keep_views false: the views are left out of the hull (its
     // occupancy is the same; for ExtractSurface without sub_voxel, which does not read them).
-    VisualHull Without(std::size_t i, bool keep_views = true) const;
+    // `tolerated`: a voxel survives that many of the other views carving it (0: the hull of
+    // the others; 1: one mask that lost part of the object does not carve it from the others').
+    VisualHull Without(std::size_t i, bool keep_views = true, int tolerated = 0) const;
 
    private:
     VoxelGrid grid_;

@@ -287,7 +287,7 @@ class ImagesRun {
     report_["units"] = thesis_mode_ ? "px" : "as in the cameras file";
     report_["scale"] = thesis_mode_ ? "unscaled (thesis mode: one unit is one pixel at the axis)"
                                     : "the cameras file's units (Middlebury: metres)";
-    return FindVolume();
+    return FindVolume(rc::AutoVolumeOptions{}.tolerated_misses);
   }
 
   Expected<void> ImportCameras(nlohmann::json& input) {
@@ -314,7 +314,10 @@ class ImagesRun {
   }
 
   // Carving volume, and the depth sign of every view from a point known to be in front.
-  Expected<void> FindVolume() {
+  // The carving volume from the usable views' masks; `tolerated_misses`: see
+  // rc::AutoVolumeOptions (the consensus's box tolerates one mask that lost a part of the object,
+  // the carving's does not).
+  Expected<void> FindVolume(int tolerated_misses) {
     if (options_.bbox) {
       const auto& b = *options_.bbox;
       box_min_ = Eigen::Vector3d(b[0], b[1], b[2]);
@@ -334,7 +337,10 @@ class ImagesRun {
       usable_masks.push_back(masks_[i]);
       usable_views.push_back(views_[i]);
     }
-    Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views);
+    rc::AutoVolumeOptions volume_options;
+    volume_options.tolerated_misses = tolerated_misses;
+    Expected<rc::AutoVolume> volume =
+        rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views, volume_options);
     if (!volume) {
       return std::unexpected(WithContext(volume.error(), "finding the carving volume"));
     }
@@ -356,6 +362,8 @@ class ImagesRun {
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
     agreement_ = std::move(*agreement);
     CollectUsable();
+    // The carving's volume: from the views left, every one of them trusted.
+    if (!options_.bbox) REVOLVE_RETURN_IF_ERROR(FindVolume(0));
     // From here each mask is held as its bounding rectangle (a fraction of the image): whole
     // masks are made again one at a time where needed.
     mask_origins_.assign(masks_.size(), cv::Point());

@@ -182,5 +182,31 @@ TEST(CarvingVolume, FoundFromSilhouettesWhateverTheSigns) {
   EXPECT_FALSE(CarvingVolumeFromSilhouettes(empty, views).has_value());
 }
 
+// One mask that lost the lower half of the object (a shadow cut away in one frame): the box still
+// holds the whole object, so the silhouette consensus can find that mask out; trusting every mask
+// (tolerated_misses 0) cuts the box short.
+TEST(CarvingVolume, OneMaskMissingAPartDoesNotCutTheBox) {
+  const Rig rig = testing::StationRig(450.0, 10.0, 40.0);
+  const testing::Sphere sphere{Eigen::Vector3d(0.0, 0.0, 45.0), 30.0};
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  for (int k = 0; k < 12; ++k) {
+    masks.push_back(testing::SphereMask(rig, 30.0 * k, sphere));
+    views.push_back(testing::ViewOf(rig, 30.0 * k));
+  }
+  const cv::Rect box = cv::boundingRect(masks[4]);
+  masks[4](
+      cv::Rect(0, box.y + box.height / 2, masks[4].cols, masks[4].rows - box.y - box.height / 2))
+      .setTo(0);
+  const Expected<AutoVolume> tolerant = CarvingVolumeFromSilhouettes(masks, views);
+  ASSERT_TRUE(tolerant.has_value()) << tolerant.error().ToString();
+  EXPECT_LE(tolerant->box.min.z(), sphere.centre_mm.z() - sphere.radius_mm);
+  AutoVolumeOptions trusting;
+  trusting.tolerated_misses = 0;
+  const Expected<AutoVolume> strict = CarvingVolumeFromSilhouettes(masks, views, trusting);
+  ASSERT_TRUE(strict.has_value()) << strict.error().ToString();
+  EXPECT_GT(strict->box.min.z(), sphere.centre_mm.z() - 0.5 * sphere.radius_mm);
+}
+
 }  // namespace
 }  // namespace revolve::reconstruct

@@ -221,6 +221,42 @@ TEST(VisualHull, LeaveOneOutEqualsIntegratingTheOtherViews) {
   }
 }
 
+// Tolerating one carve: a voxel of hull i survives when at most one of the other views carves it
+// (each view's own carve counted voxel by voxel), however many views there are.
+TEST(VisualHull, LeaveOneOutToleratingOneKeepsWhatOnlyOneOtherViewCarves) {
+  std::mt19937 rng(5);
+  const Rig rig = StationRig(300.0, 25.0, 40.0, 200, 150);
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 30);
+  std::vector<VisualHull> alone;
+  std::vector<VisualHull::PreparedView> prepared;
+  for (int k = 0; k < 9; ++k) {
+    const cv::Mat mask = IrregularMask(rig, 40.0 * k, &rng);
+    const View view = ViewOf(rig, 40.0 * k);
+    alone.emplace_back(grid);
+    ASSERT_TRUE(alone.back().Integrate(mask, view));
+    prepared.push_back(*VisualHull::PrepareView(mask, view));
+  }
+  const VisualHull::LeaveOneOut hulls(grid, prepared);
+  for (std::size_t i : {std::size_t{0}, std::size_t{4}}) {
+    const VisualHull got = hulls.Without(i, /*keep_views=*/false, /*tolerated=*/1);
+    std::int64_t differences = 0;
+    std::int64_t kept_against_one = 0;
+    for (int z = 0; z < grid.dims.z(); ++z) {
+      for (int y = 0; y < grid.dims.y(); ++y) {
+        for (int x = 0; x < grid.dims.x(); ++x) {
+          int carves = 0;
+          for (std::size_t j = 0; j < alone.size(); ++j)
+            carves += j != i && !alone[j].Occupied(x, y, z);
+          differences += got.Occupied(x, y, z) != (carves <= 1);
+          kept_against_one += carves == 1;
+        }
+      }
+    }
+    EXPECT_EQ(differences, 0) << "view " << i;
+    EXPECT_GT(kept_against_one, 100) << "view " << i;  // the tolerance keeps something
+  }
+}
+
 TEST(VisualHull, AViewDoesNotCarveWhatItCannotSee) {
   const VoxelGrid grid = Grid({-60, -60, 0}, {60, 60, 120}, 40);
   const Rig rig = StationRig();
