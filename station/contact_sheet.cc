@@ -72,6 +72,11 @@ cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask) {
   return tile;
 }
 
+cv::Mat MarkedLeftOut(cv::Mat tile) {
+  cv::rectangle(tile, cv::Rect(0, 0, tile.cols, tile.rows), cv::Scalar(0, 165, 255), 3);
+  return tile;
+}
+
 cv::Mat AssembleContactSheet(const std::vector<cv::Mat>& tiles) {
   if (tiles.empty()) return cv::Mat(16, 16, CV_8UC3, cv::Scalar::all(0));
   const int w = tiles.front().cols;

@@ -25,6 +25,10 @@ cv::Mat ContactSheetThumbnail(const cv::Mat& frame);
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame, const cv::Rect& content);
 cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask);
 
+// `tile` with an amber border (3 px): its view was left out of the carving (its mask disagrees
+// with the other views', or looks wrong).
+cv::Mat MarkedLeftOut(cv::Mat tile);
+
 // Tiles in rows of up to 6, each labelled with its stop number. An empty list gives a small
 // black image.
 cv::Mat AssembleContactSheet(const std::vector<cv::Mat>& tiles);

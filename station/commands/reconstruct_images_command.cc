@@ -114,7 +114,8 @@ class ImagesRun {
     // The masks, for a person to check, once: those the carving uses, or the segmentation's
     // when the run stops before (why it stopped is then told, the masks written).
     if (!judged) {
-      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize()));
+      REVOLVE_RETURN_IF_ERROR(
+          WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), {}, problems_));
       return std::unexpected(judged.error());
     }
     REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
@@ -193,8 +194,8 @@ class ImagesRun {
     rc::ParallelInvoke(
         [&] {
           const Clock::time_point t = Clock::now();
-          written =
-              WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), mask_origins_);
+          written = WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(),
+                               mask_origins_, problems_);
           masks_ms = MsSince(t);
         },
         [&] {

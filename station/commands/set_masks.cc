@@ -90,7 +90,8 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
 Expected<void> WriteMasks(const std::filesystem::path& out_dir,
                           const std::vector<std::string>& names,
                           const std::vector<cv::Mat>& thumbnails, const std::vector<cv::Mat>& masks,
-                          cv::Size size, const std::vector<cv::Point>& mask_origins) {
+                          cv::Size size, const std::vector<cv::Point>& mask_origins,
+                          const std::vector<std::string>& problems) {
   const std::filesystem::path dir = out_dir / "masks";
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -169,6 +170,10 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
           cv::Mat shown;
           cv::cvtColor(ContactSheetThumbnail(mask, content), shown, cv::COLOR_GRAY2BGR);
           tiles[i] = ContactSheetOutline(shown, mask);
+        }
+        // (An empty mask keeps its red border.)
+        if (i < problems.size() && !problems[i].empty() && cv::countNonZero(mask) > 0) {
+          tiles[i] = MarkedLeftOut(tiles[i]);
         }
       });
     } catch (...) {

@@ -40,12 +40,14 @@ Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
 // OUT/contact_sheet.png (every image with its mask outlined: `thumbnails` are the photos'
 // ContactSheetThumbnail, station/contact_sheet.h; empty, or an empty one, for silhouettes, which
 // are shown as they are). `masks` are of `size`, or windows of masks of `size`, mask i's pixels
-// from mask_origins[i] on (none set outside; mask_origins empty: whole masks). Errors: io naming
-// the file.
+// from mask_origins[i] on (none set outside; mask_origins empty: whole masks). A view whose
+// `problems` entry is not empty was left out of the carving: its tile has an amber border
+// (MarkedLeftOut; an empty mask's stays red). Errors: io naming the file.
 Expected<void> WriteMasks(const std::filesystem::path& out_dir,
                           const std::vector<std::string>& names,
                           const std::vector<cv::Mat>& thumbnails, const std::vector<cv::Mat>& masks,
-                          cv::Size size, const std::vector<cv::Point>& mask_origins = {});
+                          cv::Size size, const std::vector<cv::Point>& mask_origins = {},
+                          const std::vector<std::string>& problems = {});
 
 // Silhouette consensus (reconstruct/hull/silhouette_consensus.h) over the usable views (those
 // whose `problems` entry is empty; `views` normalised, the box the carving volume): every usable

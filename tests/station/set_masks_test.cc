@@ -71,6 +71,25 @@ TEST_F(WriteMasksTest, EveryMaskWholeInPlaceAndTheContactSheet) {
   EXPECT_THAT(Strays(), testing::IsEmpty());
 }
 
+// A view left out of the carving is marked on the contact sheet: an amber border on its tile
+// (the sheet's second tile), none on the others.
+TEST_F(WriteMasksTest, AViewLeftOutHasAnAmberTile) {
+  std::vector<std::string> problems(names_.size());
+  problems[1] = "its mask disagrees with the hull of the other views";
+  ASSERT_TRUE(WriteMasks(dir_, names_, {}, windows_, kSize, origins_, problems));
+  const cv::Mat sheet = cv::imread((dir_ / "contact_sheet.png").string());
+  ASSERT_FALSE(sheet.empty());
+  const int tile_width = sheet.cols / 6;  // 9 tiles: rows of 6
+  const auto amber_at = [&](int tile, int x, int y) {
+    const cv::Vec3b& p = sheet.at<cv::Vec3b>(y, tile * tile_width + x);
+    return p == cv::Vec3b(0, 165, 255);
+  };
+  EXPECT_TRUE(amber_at(1, 1, sheet.rows / 4));               // its left border
+  EXPECT_TRUE(amber_at(1, tile_width - 2, sheet.rows / 4));  // and its right
+  EXPECT_FALSE(amber_at(0, 1, sheet.rows / 4));
+  EXPECT_FALSE(amber_at(2, 1, sheet.rows / 4));
+}
+
 TEST_F(WriteMasksTest, AMaskThatCannotBePutInPlaceIsNamedAndLeavesNoTemporaryFile) {
   // A folder where the fifth mask goes: the rename over it fails (root or not).
   fs::create_directories(dir_ / "masks" / "stop_104.png" / "inside");
