@@ -24,6 +24,11 @@ std::vector<cv::Point> RectOutline(const cv::Rect& box) {
   return points;
 }
 
+cv::Rect RoiBox(cv::Size size, const cv::Mat& roi) {
+  const cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
+  return box.area() == 0 ? cv::Rect(cv::Point(), size) : box;
+}
+
 BackdropSurface::Terms BackdropSurface::TermsAt(double u, double v) {
   Terms terms;
   terms << 1.0, u, v, u * u, v * v, u * v;

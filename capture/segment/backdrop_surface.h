@@ -15,6 +15,10 @@ namespace revolve::capture {
 // The pixels on the outline of `box` (its one-pixel ring), each once.
 std::vector<cv::Point> RectOutline(const cv::Rect& box);
 
+// The bounding rectangle of `roi` (CV_8UC1, may be empty), or the whole image of `size` when it
+// is empty or has no pixel set: the rectangle whose outline shows the backdrop.
+cv::Rect RoiBox(cv::Size size, const cv::Mat& roi);
+
 class BackdropSurface {
  public:
   // Per channel a + b u + c v + d u^2 + e v^2 + g u v, (u, v) the pixel's position in `box` scaled

@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "capture/segment/backdrop_surface.h"
 #include "capture/segment/colour_cut.h"
 #include "capture/segment/mask_ops.h"
 
@@ -201,17 +202,9 @@ cv::Mat NoiseScore(const cv::Mat& score) {
 }
 
 double BackdropNoiseCeiling(const cv::Mat& score, const cv::Mat& roi) {
-  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
-  if (box.area() == 0) box = cv::Rect(0, 0, score.cols, score.rows);
   std::vector<int> values;
-  values.reserve(2 * (static_cast<std::size_t>(box.width) + static_cast<std::size_t>(box.height)));
-  for (int x = box.x; x < box.x + box.width; ++x) {
-    values.push_back(score.at<std::uint8_t>(box.y, x));
-    values.push_back(score.at<std::uint8_t>(box.y + box.height - 1, x));
-  }
-  for (int y = box.y; y < box.y + box.height; ++y) {
-    values.push_back(score.at<std::uint8_t>(y, box.x));
-    values.push_back(score.at<std::uint8_t>(y, box.x + box.width - 1));
+  for (const cv::Point& p : RectOutline(RoiBox(score.size(), roi))) {
+    values.push_back(score.at<std::uint8_t>(p));
   }
   const auto median_of = [](std::vector<int> v) {
     const auto middle = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);

@@ -50,9 +50,8 @@ Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
 // kMinBackdropSlope levels: light from one side, a lens's vignetting): that surface at every
 // pixel (CV_8UC3 of the image's size); empty when the backdrop is even (one colour then).
 cv::Mat UnevenBackdrop(const cv::Mat& bgr, const cv::Mat& roi) {
-  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
-  if (box.area() == 0) box = cv::Rect(0, 0, bgr.cols, bgr.rows);
-  const std::optional<BackdropSurface> surface = BackdropSurface::FitToOutline(bgr, box);
+  const std::optional<BackdropSurface> surface =
+      BackdropSurface::FitToOutline(bgr, RoiBox(bgr.size(), roi));
   if (!surface || !(surface->Rise() > kMinBackdropSlope)) return {};
   return surface->Image(bgr.size());
 }
@@ -555,20 +554,10 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
 }
 
 cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
-  cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
-  if (box.area() == 0) box = cv::Rect(0, 0, image.cols, image.rows);
   std::array<std::vector<std::uint8_t>, 3> channels;
-  auto add = [&](int x, int y) {
-    const cv::Vec3b& p = image.at<cv::Vec3b>(y, x);
-    for (int c = 0; c < 3; ++c) channels[c].push_back(p[c]);
-  };
-  for (int x = box.x; x < box.x + box.width; ++x) {
-    add(x, box.y);
-    add(x, box.y + box.height - 1);
-  }
-  for (int y = box.y; y < box.y + box.height; ++y) {
-    add(box.x, y);
-    add(box.x + box.width - 1, y);
+  for (const cv::Point& p : RectOutline(RoiBox(image.size(), roi))) {
+    const cv::Vec3b& c = image.at<cv::Vec3b>(p);
+    for (int k = 0; k < 3; ++k) channels[k].push_back(c[k]);
   }
   cv::Scalar out;
   for (int c = 0; c < 3; ++c) {
