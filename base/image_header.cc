@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cstring>
 #include <optional>
 #include <string>
 #include <vector>
@@ -138,6 +139,7 @@ Expected<ImageHeader> CheckJpeg(Bytes b) {
   constexpr ImageFormat f = ImageFormat::kJpeg;
   ImageHeader header{f, 0, 0, 0};
   std::optional<std::uint8_t> sof;
+  bool exif_seen = false;
   std::uint64_t entropy_bytes = 0;
   std::size_t at = 2;
   while (true) {
@@ -158,6 +160,14 @@ Expected<ImageHeader> CheckJpeg(Bytes b) {
     if (length < 2 || at + length > b.size()) {
       return Bad(
           f, fmt::format("the file is cut short (a segment at byte {} runs past its end)", at - 2));
+    }
+    // APP1: the first EXIF block gives the orientation (an XMP block has none).
+    const Bytes payload = b.subspan(at + 2, length - 2);
+    if (marker == 0xE1 && !exif_seen && payload.size() >= 6 &&
+        std::memcmp(payload.data(), "Exif\0\0", 6) == 0) {
+      exif_seen = true;
+      const std::optional<int> orientation = ExifOrientation(payload);
+      if (orientation && *orientation >= 1 && *orientation <= 8) header.orientation = *orientation;
     }
     if (IsSof(marker)) {
       if (sof) return Bad(f, "damaged: two frame headers");
@@ -497,6 +507,25 @@ std::string_view ToString(ImageFormat format) {
       return "PNM";
   }
   return "image";
+}
+
+std::optional<int> ExifOrientation(std::span<const std::uint8_t> app1) {
+  const Bytes b = app1;
+  if (b.size() < 14 || std::memcmp(b.data(), "Exif\0\0", 6) != 0) return 1;
+  const Bytes tiff = b.subspan(6);
+  const bool little = tiff[0] == 'I' && tiff[1] == 'I';
+  if (!little && !(tiff[0] == 'M' && tiff[1] == 'M')) return std::nullopt;
+  const auto u16 = [&](std::size_t at) { return little ? Le16(tiff, at) : Be16(tiff, at); };
+  const auto u32 = [&](std::size_t at) { return little ? Le32(tiff, at) : Be32(tiff, at); };
+  const std::size_t ifd = u32(4);
+  if (ifd > tiff.size() || tiff.size() - ifd < 2) return std::nullopt;
+  const std::uint32_t entries = u16(ifd);
+  for (std::uint32_t e = 0; e < entries; ++e) {
+    const std::size_t at = ifd + 2 + 12 * std::size_t{e};
+    if (at + 12 > tiff.size()) return std::nullopt;
+    if (u16(at) == 0x0112) return static_cast<int>(u16(at + 8));
+  }
+  return 1;
 }
 
 Expected<ImageHeader> CheckImageBytes(std::span<const std::uint8_t> bytes) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string_view>
 
@@ -19,12 +20,23 @@ std::string_view ToString(ImageFormat format);
 
 struct ImageHeader {
   ImageFormat format = ImageFormat::kPng;
-  std::int64_t width_px = 0;
+  std::int64_t width_px = 0;  // as stored
   std::int64_t height_px = 0;
   int channels = 0;
+  // A JPEG's EXIF orientation (tag 0x0112 of the first EXIF block): how a viewer turns the stored
+  // pixels to show them. 1 as stored; 3 a half turn; 6 a quarter clockwise, 8 anticlockwise; 2
+  // and 4 mirrored left-right and top-bottom; 5 and 7 mirrored across a diagonal. 1 for the other
+  // formats, and for a value that is missing, unreadable or not 1..8 (OpenCV ignores those too).
+  int orientation = 1;
 
   std::int64_t pixels() const { return width_px * height_px; }
+  // Whether the orientation swaps width and height (5..8).
+  bool quarter_turned() const { return orientation >= 5; }
 };
+
+// The orientation in the payload of a JPEG APP1 marker segment (after its length): 1 when it is
+// not an EXIF block or has no orientation tag, nullopt when the block cannot be read.
+std::optional<int> ExifOrientation(std::span<const std::uint8_t> app1);
 
 // The header of a whole image file held in `bytes`, after these checks of its structure:
 // - PNG: signature, IHDR first, every chunk complete with a correct CRC, an IEND chunk;

@@ -85,12 +85,12 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
   if (!bytes) return std::unexpected(bytes.error());
   auto header = CheckedHeader(path, *bytes, options.max_pixels);
   if (!header) return std::unexpected(header.error());
-  if (options.expected_size && (header->width_px != options.expected_size->width ||
-                                header->height_px != options.expected_size->height)) {
+  const cv::Size size = DecodedSize(*header, options);
+  if (options.expected_size && size != *options.expected_size) {
     return Named(path, ErrorCode::kBadInput,
-                 fmt::format("is {} x {} pixels, but the other images are {} x {}",
-                             header->width_px, header->height_px, options.expected_size->width,
-                             options.expected_size->height));
+                 fmt::format("is {} x {} pixels{}, but the other images are {} x {}", size.width,
+                             size.height, header->quarter_turned() ? " (turned by its EXIF)" : "",
+                             options.expected_size->width, options.expected_size->height));
   }
   cv::Mat image;
   // The common PNGs and JPEGs (masks, frames, photos) are decoded once, strictly.
@@ -128,7 +128,39 @@ Expected<cv::Mat> ReadImageFile(const fs::path& path, const ImageReadOptions& op
                  fmt::format("decoded as {} x {} although its header says {} x {} (damaged?)",
                              image.cols, image.rows, header->width_px, header->height_px));
   }
+  if (options.upright && options.imread_flags == cv::IMREAD_UNCHANGED && same) {
+    TurnUpright(header->orientation, &image);
+  }
   return image;
+}
+
+cv::Size DecodedSize(const ImageHeader& header, const ImageReadOptions& options) {
+  const bool turns = options.imread_flags != cv::IMREAD_UNCHANGED || options.upright;
+  const auto width = static_cast<int>(header.width_px);
+  const auto height = static_cast<int>(header.height_px);
+  return turns && header.quarter_turned() ? cv::Size(height, width) : cv::Size(width, height);
+}
+
+void TurnUpright(int orientation, cv::Mat* image) {
+  // OpenCV's order (ApplyExifOrientation): a transpose for 5..8, then a flip.
+  if (orientation < 2 || orientation > 8) return;
+  if (orientation >= 5) cv::transpose(*image, *image);
+  switch (orientation) {
+    case 2:  // mirrored left-right
+    case 6:  // a quarter clockwise
+      cv::flip(*image, *image, 1);
+      break;
+    case 3:  // a half turn
+    case 7:
+      cv::flip(*image, *image, -1);
+      break;
+    case 4:  // mirrored top-bottom
+    case 8:  // a quarter anticlockwise
+      cv::flip(*image, *image, 0);
+      break;
+    default:  // 5: the transpose alone
+      break;
+  }
 }
 
 }  // namespace revolve

@@ -23,9 +23,21 @@ struct ImageReadOptions {
   int imread_flags = cv::IMREAD_UNCHANGED;  // as cv::imread's (IMREAD_COLOR, IMREAD_GRAYSCALE)
   std::int64_t max_pixels = kDefaultMaxImagePixels;
   // The size every image of a set shares, when known: a file of another size is refused from
-  // its header, before it is decoded.
+  // its header, before it is decoded. It is the size as decoded: turned when the picture is.
   std::optional<cv::Size> expected_size;
+  // With IMREAD_UNCHANGED, which leaves a JPEG's pixels as stored: turned as its EXIF orientation
+  // says (TurnUpright), as a viewer shows it. The other flags turn it already, as cv::imread
+  // does.
+  bool upright = false;
 };
+
+// The size of the picture as ReadImageFile decodes `header`'s file with `options`: the stored
+// size, or its transpose when the picture is turned a quarter.
+cv::Size DecodedSize(const ImageHeader& header, const ImageReadOptions& options);
+
+// Turns or mirrors `image` (as stored) as EXIF `orientation` (ImageHeader::orientation) says, the
+// same pixels as cv::imread's default gives; 1 and values outside 2..8 leave it as it is.
+void TurnUpright(int orientation, cv::Mat* image);
 
 // The header of the image file at `path` (the whole file is read and checked, none of it
 // decoded). Errors name the file: not_found (no file; a dangling symbolic link says so and names
@@ -35,7 +47,7 @@ Expected<ImageHeader> ReadImageHeader(const std::filesystem::path& path,
                                       std::int64_t max_pixels = kDefaultMaxImagePixels);
 
 // Reads and decodes `path` after ReadImageHeader's checks and the expected size; the decoded
-// image has the header's size. Errors as ReadImageHeader, plus bad_input naming the file when
+// image has DecodedSize. Errors as ReadImageHeader, plus bad_input naming the file when
 // the size differs from `expected_size`, or the decoder refuses the data or only warns about it
 // (base/image_verify.h: every libjpeg, libpng and libtiff warning is an error). Peak memory: the
 // file's bytes plus one decoded image.

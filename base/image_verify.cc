@@ -111,31 +111,6 @@ Expected<void> VerifyJpeg(Bytes b) {
   return jpeg.Complaint();
 }
 
-// The EXIF orientation (tag 0x0112 of IFD0) in a saved APP1 marker: 1 (upright) when the
-// marker is not EXIF or has no such tag, nullopt when it cannot be read.
-std::optional<int> ExifOrientation(const jpeg_saved_marker_ptr marker) {
-  const std::span<const std::uint8_t> b(marker->data, marker->data_length);
-  if (b.size() < 14 || std::memcmp(b.data(), "Exif\0\0", 6) != 0) return 1;
-  const std::span<const std::uint8_t> tiff = b.subspan(6);
-  const bool little = tiff[0] == 'I' && tiff[1] == 'I';
-  if (!little && !(tiff[0] == 'M' && tiff[1] == 'M')) return std::nullopt;
-  auto u16 = [&](std::size_t at) -> std::uint32_t {
-    return little ? tiff[at] | (tiff[at + 1] << 8) : (tiff[at] << 8) | tiff[at + 1];
-  };
-  auto u32 = [&](std::size_t at) -> std::uint32_t {
-    return little ? u16(at) | (u16(at + 2) << 16) : (u16(at) << 16) | u16(at + 2);
-  };
-  const std::size_t ifd = u32(4);
-  if (ifd + 2 > tiff.size()) return std::nullopt;
-  const std::uint32_t entries = u16(ifd);
-  for (std::uint32_t e = 0; e < entries; ++e) {
-    const std::size_t at = ifd + 2 + 12 * std::size_t{e};
-    if (at + 12 > tiff.size()) return std::nullopt;
-    if (u16(at) == 0x0112) return static_cast<int>(u16(at + 8));
-  }
-  return 1;
-}
-
 struct JpegPixels {
   int imread_flags = cv::IMREAD_UNCHANGED;
   cv::Mat image;
@@ -155,7 +130,8 @@ bool DecodeJpegPixels(Bytes b, jpeg_decompress_struct& cinfo, JpegContext& conte
   const int flags = pixels.imread_flags;
   bool turned = false;
   for (jpeg_saved_marker_ptr m = cinfo.marker_list; m != nullptr; m = m->next) {
-    const std::optional<int> orientation = ExifOrientation(m);
+    const std::optional<int> orientation =
+        ExifOrientation(std::span<const std::uint8_t>(m->data, m->data_length));
     turned = turned || orientation != 1;
   }
   const J_COLOR_SPACE space = cinfo.jpeg_color_space;

@@ -269,6 +269,7 @@ Expected<cv::Mat> ReadImage8(const std::filesystem::path& path, std::int64_t max
   read.imread_flags = cv::IMREAD_UNCHANGED;
   read.max_pixels = max_pixels;
   read.expected_size = expected_size;
+  read.upright = true;
   Expected<cv::Mat> decoded = ReadImageFile(path, read);
   if (!decoded) return std::unexpected(decoded.error());
   cv::Mat image = std::move(*decoded);
@@ -366,17 +367,23 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
 // message: one odd image is then reported as the odd one, wherever it stands in the set. Empty
 // when no header can be read (the decoder then reports the first file's error).
 struct SetSize {
-  cv::Size size;
+  cv::Size size;       // as decoded (ReadImage8: upright)
   std::string source;  // "the other 35 images are", "view_000.png is"
+  int turned = 0;      // images whose EXIF orientation turns or mirrors them
 };
 std::optional<SetSize> MajoritySize(const std::vector<SetImage>& images, std::int64_t max_pixels) {
   std::vector<std::optional<cv::Size>> sizes(images.size());
+  std::vector<char> turned(images.size(), 0);
+  ImageReadOptions read;
+  read.upright = true;
   ParallelFor(0, images.size(), [&](std::size_t i) {
     Expected<ImageHeader> header = ReadImageHeader(images[i].path, max_pixels);
     if (header) {
-      sizes[i] = cv::Size(static_cast<int>(header->width_px), static_cast<int>(header->height_px));
+      sizes[i] = DecodedSize(*header, read);
+      turned[i] = header->orientation != 1 ? 1 : 0;
     }
   });
+  const auto turned_count = static_cast<int>(std::count(turned.begin(), turned.end(), 1));
   std::optional<cv::Size> best;
   std::size_t best_count = 0;
   std::size_t best_first = 0;
@@ -390,9 +397,11 @@ std::optional<SetSize> MajoritySize(const std::vector<SetImage>& images, std::in
     }
   }
   if (!best) return std::nullopt;
-  if (best_count == 1) return SetSize{*best, images[best_first].file_name + " is"};
-  return SetSize{*best, fmt::format("{} of the {} images ({} first) are", best_count, images.size(),
-                                    images[best_first].file_name)};
+  if (best_count == 1) return SetSize{*best, images[best_first].file_name + " is", turned_count};
+  return SetSize{*best,
+                 fmt::format("{} of the {} images ({} first) are", best_count, images.size(),
+                             images[best_first].file_name),
+                 turned_count};
 }
 
 // The kind most images are; a tie goes to the first image's.
@@ -509,6 +518,7 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
   }
   set.width_px = decoded[0].size.width;
   set.height_px = decoded[0].size.height;
+  set.exif_turned = size ? size->turned : 0;
   set.kind = MajorityKind(decoded);
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     const SetImage& image = set.images[i];

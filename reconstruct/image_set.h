@@ -89,8 +89,10 @@ struct SetImage {
 
 struct ImageSet {
   ImageKind kind = ImageKind::kPhoto;
-  int width_px = 0;
+  int width_px = 0;  // as decoded: upright (ReadImage8)
   int height_px = 0;
+  // Images whose JPEG EXIF orientation turned or mirrored them upright (ReadImage8).
+  int exif_turned = 0;
   std::vector<SetImage> images;  // by index (pattern) or by file name
 };
 
@@ -140,7 +142,8 @@ cv::Mat WholeFromWindow(const cv::Mat& window, cv::Point origin, cv::Size size);
 // that is not a multiple of step_deg, a bad pattern or step).
 Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSetOptions& options);
 
-// Reads one image file as LoadImageSet does: 8-bit grey or BGR (16-bit samples scaled to 8 bits;
+// Reads one image file as LoadImageSet does: upright (a JPEG turned or mirrored as its EXIF
+// orientation says, as viewers show it), 8-bit grey or BGR (16-bit samples scaled to 8 bits;
 // BGRA loses its alpha, into
 // *alpha when given: CV_8UC1, left empty for an image without one), its header checked first
 // (base/image_read.h: over `max_pixels`, of another size than `expected_size`, cut short or

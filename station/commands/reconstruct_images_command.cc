@@ -174,6 +174,12 @@ class ImagesRun {
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
                         rc::KindName(set_.kind, true), set_.width_px, set_.height_px,
                         options_.images.string());
+    if (set_.exif_turned > 0) {
+      out_ << fmt::format(
+          "  {} of them turned upright as their EXIF orientation says (as a "
+          "viewer shows them)\n",
+          set_.exif_turned);
+    }
     for (rc::SetImage& image : set_.images) {
       names_.push_back(image.file_name);
       masks_.push_back(std::move(image.mask));  // held once: the consensus replaces them
@@ -272,7 +278,8 @@ class ImagesRun {
     nlohmann::json input = {
         {"images", options_.images.string()}, {"pattern", options_.pattern},
         {"count", set_.images.size()},        {"kind", rc::KindName(set_.kind, true)},
-        {"width_px", set_.width_px},          {"height_px", set_.height_px}};
+        {"width_px", set_.width_px},          {"height_px", set_.height_px},
+        {"exif_turned", set_.exif_turned}};
     if (photos_ && legacy_threshold_) input["threshold"] = options_.threshold;
     if (thesis_mode_) {
       for (const rc::SetImage& image : set_.images) {

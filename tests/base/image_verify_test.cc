@@ -12,11 +12,13 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "base/image_header.h"
 #include "base/image_read.h"
 #include "base/png_encode.h"
 #include "tests/support/encoded_images.h"
@@ -306,15 +308,8 @@ TEST(DecodeVerifiedJpeg, MatchesOpenCvForColourGreyAndProgressiveUnderEveryFlag)
 // A JPEG whose EXIF says "turn a quarter" is left to OpenCV (which turns it), except when the
 // caller asked for the file unchanged.
 TEST(DecodeVerifiedJpeg, AnExifTurnIsLeftToOpenCvUnlessUnchanged) {
-  const Bytes plain = EncodeImage(".jpg", TexturedPicture(40, 24));
-  // APP1: "Exif\0\0", a little-endian TIFF header, IFD0 with one entry: orientation (0x0112,
-  // SHORT, 1) = 6.
-  const Bytes exif = {0xFF, 0xE1, 0x00, 0x22, 'E', 'x', 'i', 'f', 0,    0,    'I', 'I',
-                      0x2A, 0,    8,    0,    0,   0,   1,   0,   0x12, 0x01, 3,   0,
-                      1,    0,    0,    0,    6,   0,   0,   0,   0,    0,    0,   0};
-  Bytes turned(plain.begin(), plain.begin() + 2);
-  turned.insert(turned.end(), exif.begin(), exif.end());
-  turned.insert(turned.end(), plain.begin() + 2, plain.end());
+  const Bytes turned =
+      test_support::WithExifOrientation(EncodeImage(".jpg", TexturedPicture(40, 24)), 6);
   ASSERT_EQ(cv::imdecode(turned, cv::IMREAD_COLOR).size(), cv::Size(24, 40));  // OpenCV turns
   EXPECT_FALSE(DecodeVerifiedJpeg(turned, cv::IMREAD_COLOR));
   EXPECT_FALSE(DecodeVerifiedJpeg(turned, cv::IMREAD_GRAYSCALE));
@@ -330,6 +325,74 @@ TEST(DecodeVerifiedJpeg, AnExifTurnIsLeftToOpenCvUnlessUnchanged) {
   const Expected<cv::Mat> read = ReadImageFile(dir.path() / "turned.jpg", options);
   ASSERT_TRUE(read) << read.error().message;
   EXPECT_EQ(read->size(), cv::Size(24, 40));
+}
+
+// A photo from a camera held sideways: its pixels stored as the sensor saw them, and the EXIF
+// orientation saying how to show them. ReadImageFile's `upright` shows each of the eight as
+// cv::imread's default (and a viewer) does, in either byte order of the EXIF block; the header
+// tells the orientation and the size the picture will have before it is decoded.
+TEST(ReadImageFile, UprightTurnsEachExifOrientationAsOpenCvDoes) {
+  const test_support::TempDir dir;
+  const Bytes plain = EncodeImage(".jpg", TexturedPicture(40, 24));
+  for (int orientation = 1; orientation <= 8; ++orientation) {
+    for (const bool big_endian : {false, true}) {
+      const std::string what =
+          fmt::format("orientation {}, {} endian", orientation, big_endian ? "big" : "little");
+      const Bytes bytes = test_support::WithExifOrientation(plain, orientation, big_endian);
+      const Expected<ImageHeader> header = CheckImageBytes(bytes);
+      ASSERT_TRUE(header) << header.error().message;
+      EXPECT_EQ(header->orientation, orientation) << what;
+      EXPECT_EQ(header->width_px, 40) << what;  // as stored
+      const std::filesystem::path path = dir.path() / "photo.jpg";
+      Write(path, bytes);
+      ImageReadOptions options;
+      options.upright = true;
+      const Expected<cv::Mat> upright = ReadImageFile(path, options);
+      ASSERT_TRUE(upright) << upright.error().message;
+      const cv::Mat shown = cv::imdecode(bytes, cv::IMREAD_COLOR);
+      ASSERT_EQ(upright->size(), shown.size()) << what;
+      EXPECT_EQ(upright->size(), DecodedSize(*header, options)) << what;
+      EXPECT_EQ(cv::norm(*upright, shown, cv::NORM_INF), 0.0) << what;
+      // Without it, IMREAD_UNCHANGED keeps the pixels as stored (as cv::imread does).
+      const Expected<cv::Mat> stored = ReadImageFile(path);
+      ASSERT_TRUE(stored) << stored.error().message;
+      EXPECT_EQ(stored->size(), cv::Size(40, 24)) << what;
+      // A set's size is the size as shown: the stored one is refused, naming the turn.
+      options.expected_size = cv::Size(40, 24);
+      const Expected<cv::Mat> refused = ReadImageFile(path, options);
+      EXPECT_EQ(refused.has_value(), orientation < 5) << what;
+      if (!refused) {
+        EXPECT_THAT(refused.error().message, HasSubstr("turned by its EXIF")) << what;
+      }
+    }
+  }
+}
+
+// What a viewer ignores is upright: an orientation out of range, an EXIF block that cannot be
+// read, one without the tag; only the first EXIF block counts, and an XMP block before it is
+// passed over.
+TEST(ImageHeader, ExifOrientationOnlyFromTheFirstReadableExifBlock) {
+  const Bytes plain = EncodeImage(".jpg", TexturedPicture(40, 24));
+  EXPECT_EQ(CheckImageBytes(plain)->orientation, 1);
+  EXPECT_EQ(CheckImageBytes(test_support::WithExifOrientation(plain, 9))->orientation, 1);
+  EXPECT_EQ(CheckImageBytes(test_support::WithExifOrientation(plain, 0))->orientation, 1);
+  Bytes unreadable = test_support::WithExifOrientation(plain, 6);
+  unreadable[2 + 4 + 6 + 4] = 0xF0;  // IFD0's offset far past the block
+  EXPECT_EQ(CheckImageBytes(unreadable)->orientation, 1);
+  // Two EXIF blocks: the first one's orientation.
+  const Bytes twice =
+      test_support::WithExifOrientation(test_support::WithExifOrientation(plain, 3), 8);
+  EXPECT_EQ(CheckImageBytes(twice)->orientation, 8);
+  // An XMP block first.
+  const std::string xmp = "http://ns.adobe.com/xap/1.0/";
+  Bytes with_xmp = test_support::WithExifOrientation(plain, 6);
+  Bytes segment = {0xFF, 0xE1, 0, static_cast<std::uint8_t>(2 + xmp.size() + 1)};
+  segment.insert(segment.end(), xmp.begin(), xmp.end());
+  segment.push_back(0);
+  with_xmp.insert(with_xmp.begin() + 2, segment.begin(), segment.end());
+  EXPECT_EQ(CheckImageBytes(with_xmp)->orientation, 6);
+  // Other formats have none.
+  EXPECT_EQ(CheckImageBytes(EncodeImage(".png", TexturedPicture(40, 24)))->orientation, 1);
 }
 
 // An RLE8 bitmap cut before its end-of-bitmap mark.

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "reconstruct/image_set.h"
+#include "tests/support/encoded_images.h"
 
 namespace revolve::reconstruct {
 namespace {
@@ -339,6 +340,42 @@ TEST_F(ImageSetFolder, CutOutPhotosAreMaskedByTheirAlpha) {
 
 // 16-bit images (a raw converter's TIFF, a 16-bit PNG) load as their 8-bit selves, cut-outs
 // included; floating-point samples are refused by name.
+// Photos from a camera turned on its side: the JPEGs hold the pixels as the sensor saw them
+// (the turntable's axis across the picture) and EXIF says to turn them a quarter. The set is the
+// photos as a viewer shows them: upright, the object standing, in the photos' upright size, with
+// the count of turned images for the log; one photo saved upright without EXIF fits in.
+TEST_F(ImageSetFolder, JpegPhotosAreTurnedUprightByTheirExif) {
+  cv::Mat upright(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
+  cv::rectangle(upright, {26, 8}, {37, 39}, cv::Scalar(60, 160, 220), cv::FILLED);  // standing
+  cv::Mat stored;
+  cv::rotate(upright, stored, cv::ROTATE_90_COUNTERCLOCKWISE);  // 6: a quarter clockwise to show
+  std::vector<std::uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", stored, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}));
+  const std::vector<std::uint8_t> turned = test_support::WithExifOrientation(jpeg, 6);
+  for (int i = 0; i < 4; ++i) {
+    std::ofstream(dir_ / fmt::format("view{}.jpg", i), std::ios::binary)
+        .write(reinterpret_cast<const char*>(turned.data()),
+               static_cast<std::streamsize>(turned.size()));
+  }
+  ASSERT_TRUE(cv::imwrite((dir_ / "view4.jpg").string(), upright, {cv::IMWRITE_JPEG_QUALITY, 95}));
+  const Expected<ImageSet> set = LoadImageSet(dir_, ImageSetOptions{});
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  EXPECT_EQ(set->kind, ImageKind::kPhoto);
+  EXPECT_EQ(cv::Size(set->width_px, set->height_px), cv::Size(64, 48));
+  EXPECT_EQ(set->exif_turned, 4);
+  for (const SetImage& image : set->images) {
+    const cv::Rect object = cv::boundingRect(image.mask);
+    EXPECT_NEAR(object.x, 26, 1) << image.file_name;
+    EXPECT_NEAR(object.y, 8, 1) << image.file_name;
+    EXPECT_NEAR(object.width, 12, 2) << image.file_name;
+    EXPECT_NEAR(object.height, 32, 2) << image.file_name;
+  }
+  // Read through ReadImage8 (as a photo is read again for texture): upright too.
+  const Expected<cv::Mat> again = ReadImage8(dir_ / "view0.jpg");
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(again->size(), cv::Size(64, 48));
+}
+
 TEST_F(ImageSetFolder, SixteenBitImagesAreScaledToEightBits) {
   cv::Mat photo(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
   cv::circle(photo, {30, 20}, 8, cv::Scalar(30, 140, 200), cv::FILLED);

@@ -29,4 +29,22 @@ inline std::vector<std::uint8_t> EncodeImage(const std::string& ext, const cv::M
   return bytes;
 }
 
+// `jpeg` with an EXIF block (APP1, right after SOI) whose IFD0 holds one entry: the orientation
+// (tag 0x0112, SHORT) = `orientation`, in a TIFF structure of either byte order.
+inline std::vector<std::uint8_t> WithExifOrientation(const std::vector<std::uint8_t>& jpeg,
+                                                     int orientation, bool big_endian = false) {
+  const auto o = static_cast<std::uint8_t>(orientation);
+  const std::vector<std::uint8_t> little = {
+      0xFF, 0xE1, 0x00, 0x22, 'E', 'x', 'i', 'f', 0, 0, 'I', 'I', 0x2A, 0, 8, 0, 0, 0,
+      1,    0,    0x12, 0x01, 3,   0,   1,   0,   0, 0, o,   0,   0,    0, 0, 0, 0, 0};
+  const std::vector<std::uint8_t> big = {
+      0xFF, 0xE1, 0x00, 0x22, 'E', 'x', 'i', 'f', 0, 0, 'M', 'M', 0, 0x2A, 0, 0, 0, 8,
+      0,    1,    0x01, 0x12, 0,   3,   0,   0,   0, 1, 0,   o,   0, 0,    0, 0, 0, 0};
+  const std::vector<std::uint8_t>& exif = big_endian ? big : little;
+  std::vector<std::uint8_t> out(jpeg.begin(), jpeg.begin() + 2);
+  out.insert(out.end(), exif.begin(), exif.end());
+  out.insert(out.end(), jpeg.begin() + 2, jpeg.end());
+  return out;
+}
+
 }  // namespace revolve::test_support
