@@ -174,6 +174,7 @@ class ImagesRun {
     out_ << fmt::format("{} {} of {}x{} px from {}\n", set_.images.size(),
                         rc::KindName(set_.kind, true), set_.width_px, set_.height_px,
                         options_.images.string());
+    TurnNote();
     if (set_.exif_turned > 0) {
       out_ << fmt::format(
           "  {} of them turned upright as their EXIF orientation says (as a "
@@ -272,6 +273,26 @@ class ImagesRun {
                                  "are in {}):{}",
                                  options_.images.string(), usable_.size(), masks_.size(),
                                  (options_.out / "masks").string(), why));
+  }
+
+  // In thesis mode with the angles not in the names: a note when the images do not make one
+  // turn at the step (the default 10 degrees for a set of 18 or 72 photos is a likely slip).
+  void TurnNote() {
+    if (!thesis_mode_ || set_.images.empty() ||
+        options_.pattern.find("{angle}") != std::string::npos) {
+      return;
+    }
+    int last = 0;
+    for (const rc::SetImage& image : set_.images) last = std::max(last, image.index);
+    const double turn_deg = (last + 1) * options_.step_deg;
+    if (std::abs(turn_deg - 360.0) < 1e-6) return;
+    const std::string note = fmt::format(
+        "note: {} images {:g} deg apart (--step-deg) {} {:g} deg; if they make one turn they are "
+        "{:g} deg apart: pass --step-deg {:g}",
+        last + 1, options_.step_deg, turn_deg < 360.0 ? "cover" : "would turn", turn_deg,
+        360.0 / (last + 1), 360.0 / (last + 1));
+    Logger("station")->warn("reconstruct --images: {}", note);
+    out_ << note << "\n";
   }
 
   Expected<void> CamerasAndVolume() {

@@ -122,6 +122,26 @@ TEST_F(ReconstructImages, ThesisSilhouettesWithTheHull) {
   EXPECT_NEAR(report["model"]["volume"].get<double>(), truth, 0.05 * truth);
 }
 
+// Eighteen images of a whole turn taken without --step-deg: the default 10 degrees would lay them
+// over half a turn. The run says so and says what to pass; at the right step it says nothing.
+TEST_F(ReconstructImages, ImagesThatDoNotMakeOneTurnAtTheStepAreNoted) {
+  WriteSilhouettes(18, 20.0);
+  ReconstructImagesOptions options = Options();
+  options.pattern.clear();  // in name order: the angles are the step's
+  options.resolution = 32;
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  EXPECT_NE(out_.str().find("18 images 10 deg apart (--step-deg) cover 180 deg; if they make one "
+                            "turn they are 20 deg apart: pass --step-deg 20"),
+            std::string::npos)
+      << out_.str();
+  options.step_deg = 20.0;
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  EXPECT_EQ(out_.str().find("note:"), std::string::npos) << out_.str();
+  options.step_deg = 40.0;
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  EXPECT_NE(out_.str().find("would turn 720 deg"), std::string::npos) << out_.str();
+}
+
 TEST_F(ReconstructImages, PhotosGiveATexturedVrml) {
   const cv::Mat mask = BottleMask();
   for (int k = 0; k < 36; ++k) {
