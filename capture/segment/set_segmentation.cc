@@ -6,6 +6,7 @@
 #include <optional>
 
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 #include <opencv2/imgproc.hpp>
 
 #include "base/image_read.h"
@@ -120,11 +121,19 @@ Expected<std::vector<cv::Mat>> SegmentAll(const std::vector<cv::Mat>& frames,
                                           const cv::Mat& background) {
   Expected<std::unique_ptr<Segmenter>> segmenter = CreateSegmenter(options);
   if (!segmenter) return std::unexpected(segmenter.error());
+  // The frames on all cores, each into its slot (a segmenter is const: Segment shares nothing
+  // between frames); the first error in frame order is returned.
+  std::vector<Expected<cv::Mat>> results(frames.size(), cv::Mat());
+  tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t i) {
+    results[i] = (*segmenter)->Segment(frames[i], background);
+  });
   std::vector<cv::Mat> masks;
+  masks.reserve(frames.size());
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    Expected<cv::Mat> mask = (*segmenter)->Segment(frames[i], background);
-    if (!mask) return std::unexpected(WithContext(mask.error(), fmt::format("image {}", i + 1)));
-    masks.push_back(std::move(*mask));
+    if (!results[i]) {
+      return std::unexpected(WithContext(results[i].error(), fmt::format("image {}", i + 1)));
+    }
+    masks.push_back(std::move(*results[i]));
   }
   return masks;
 }
@@ -163,8 +172,10 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   // Uniform: within 12 levels of the smooth surface fitted to its frame's outline (even light,
   // light from one side and vignetting are even; a cloth's folds and texture are not), or of the
   // median colour where no surface fits.
-  std::size_t uniform = 0;
-  for (const cv::Mat& frame : frames) {
+  // Each frame's count on all cores, summed in frame order.
+  std::vector<std::size_t> uniform_in(frames.size(), 0);
+  tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
+    const cv::Mat& frame = frames[f];
     const std::optional<BackdropSurface> surface =
         BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, size.width, size.height));
     for (const cv::Point& p : points) {
@@ -173,9 +184,11 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
           surface ? surface->At(p.x, p.y) : cv::Vec3d(survey.bgr[0], survey.bgr[1], survey.bgr[2]);
       double worst = 0.0;
       for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - expected[k]));
-      uniform += worst <= kStillLevels;
+      uniform_in[f] += worst <= kStillLevels;
     }
-  }
+  });
+  std::size_t uniform = 0;
+  for (const std::size_t count : uniform_in) uniform += count;
   survey.outline_uniformity = all[0].empty() ? 0.0 : double(uniform) / double(all[0].size());
   const double b = survey.bgr[0], g = survey.bgr[1], r = survey.bgr[2];
   survey.luma = 0.299 * r + 0.587 * g + 0.114 * b;
@@ -205,8 +218,9 @@ cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::
     free.push_back(grown == 0);
   }
   cv::Mat out(size, CV_8UC3);
-  std::array<std::vector<std::uint8_t>, 3> values;
-  for (int y = 0; y < size.height; ++y) {
+  // The rows on all cores, each pixel's median its own.
+  tbb::parallel_for(0, size.height, [&](int y) {
+    std::array<std::vector<std::uint8_t>, 3> values;
     auto* o = out.ptr<cv::Vec3b>(y);
     for (int x = 0; x < size.width; ++x) {
       for (auto& v : values) v.clear();
@@ -220,7 +234,7 @@ cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::
             values[k].empty() ? cv::saturate_cast<std::uint8_t>(fallback[k]) : Median(values[k]);
       }
     }
-  }
+  });
   return out;
 }
 
