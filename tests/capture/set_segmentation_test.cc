@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <tbb/global_control.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -205,6 +206,41 @@ TEST(SetSegmentation, ATurntableSequenceTeachesTheBackdrop) {
   std::printf("turntable over an uneven cloth: auto (%s) mean IoU %.4f\n", set->method.c_str(),
               mean);
   EXPECT_GE(mean, 0.97);
+}
+
+// The frames are cut on all cores, and the backdrop learned on them: one core gives the same
+// masks, bit for bit, for the learned backdrop (a cloth) and the graph cut (black).
+TEST(SetSegmentation, OneCoreAndAllCoresGiveTheSameMasks) {
+  auto camera = Camera("vase", 1.0);
+  ASSERT_NE(camera, nullptr);
+  const cv::Mat cloth =
+      test_support::Cloth(camera->RenderWithTruth(0.0, 1).image.size(), 6.0, 90.0, 23);
+  std::vector<cv::Mat> on_cloth;
+  std::vector<cv::Mat> on_black;
+  for (int k = 0; k < 10; ++k) {
+    on_cloth.push_back(Composite(camera->RenderWithTruth(36.0 * k, static_cast<std::uint64_t>(k)),
+                                 cloth, static_cast<std::uint64_t>(100 + k))
+                           .image);
+    on_black.push_back(MakeScene(Scene::kBlackShadowedObject, "vase", 36.0 * k).image);
+  }
+  SegmentOptions options;
+  options.method = "auto";
+  for (const std::vector<cv::Mat>* frames : {&on_cloth, &on_black}) {
+    const auto run = [&](int threads) {
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      return SegmentImageSet(*frames, options);
+    };
+    const Expected<SetSegmentation> one = run(1);
+    const Expected<SetSegmentation> all = run(8);
+    ASSERT_TRUE(one && all);
+    EXPECT_EQ(one->method, frames == &on_cloth ? "background" : "graphcut");
+    EXPECT_EQ(all->method, one->method);
+    EXPECT_EQ(one->survey.outline_uniformity, all->survey.outline_uniformity);
+    ASSERT_EQ(one->masks.size(), all->masks.size());
+    for (std::size_t i = 0; i < one->masks.size(); ++i) {
+      EXPECT_EQ(cv::countNonZero(one->masks[i] != all->masks[i]), 0) << one->method << " " << i;
+    }
+  }
 }
 
 TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
