@@ -11,6 +11,13 @@ namespace revolve::station {
 namespace {
 constexpr int kTileWidthPx = 192;
 constexpr int kColumns = 6;
+
+// The thumbnail's scale: a whole number of frame pixels to one, the least that makes it at most
+// kTileWidthPx wide (cv::resize's area averaging is several times faster at a whole factor: 1 ms
+// instead of 3.4 for a 1280 x 960 frame).
+double ThumbnailScale(int frame_cols) {
+  return 1.0 / std::max(1, (frame_cols + kTileWidthPx - 1) / kTileWidthPx);
+}
 }  // namespace
 
 cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask) {
@@ -18,14 +25,14 @@ cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask) {
 }
 
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame) {
-  const double scale = std::min(1.0, static_cast<double>(kTileWidthPx) / frame.cols);
+  const double scale = ThumbnailScale(frame.cols);
   cv::Mat thumbnail;
   cv::resize(frame, thumbnail, cv::Size(), scale, scale, cv::INTER_AREA);
   return thumbnail;
 }
 
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame, const cv::Rect& content) {
-  const double fx = std::min(1.0, static_cast<double>(kTileWidthPx) / frame.cols);
+  const double fx = ThumbnailScale(frame.cols);
   // cv::resize's own factor (1 / fx, frame pixels a thumbnail pixel): when it is j / 64 exactly,
   // every thumbnail pixel's frame pixels and weights repeat, shifted by `period` frame pixels,
   // every `step` thumbnail pixels; a part cut at multiples of `period` shrinks to the same pixels.

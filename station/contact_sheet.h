@@ -8,8 +8,9 @@
 
 namespace revolve::station {
 
-// A thumbnail (at most 192 px wide) of `frame` (CV_8UC3) with the outline of `mask` (CV_8UC1,
-// same size) drawn in green; an empty mask is marked with a red border.
+// A thumbnail (at most 192 px wide: the frame shrunk by a whole factor, 1280 px to 183, 720 to
+// 180) of `frame` (CV_8UC3) with the outline of `mask` (CV_8UC1, same size) drawn in green; an
+// empty mask is marked with a red border.
 cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask);
 
 // ContactSheetTile in two steps, for a caller that drops the frame before the mask is final:
@@ -18,10 +19,9 @@ cv::Mat ContactSheetTile(const cv::Mat& frame, const cv::Mat& mask);
 // A grey frame's thumbnail is grey, and in colour the thumbnail of its colour copy.
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame);
 // The same thumbnail of a frame that is zero outside `content` (a silhouette within its
-// rectangle), made by shrinking only the content's neighbourhood where the shrinking factor
-// allows it to the bit (it is an exact binary fraction with a whole number of frame pixels to a
-// whole number of thumbnail pixels, e.g. 720 px wide: 15 to 4): the same pixels, a fifth of the
-// work for a typical silhouette. Otherwise ContactSheetThumbnail(frame).
+// rectangle), made by shrinking only the content's neighbourhood (the factor is whole: each
+// thumbnail pixel averages its own frame pixels): the same pixels, a fifth of the work for a
+// typical silhouette. Where that does not hold, ContactSheetThumbnail(frame).
 cv::Mat ContactSheetThumbnail(const cv::Mat& frame, const cv::Rect& content);
 cv::Mat ContactSheetOutline(const cv::Mat& thumbnail, const cv::Mat& mask);
 
