@@ -221,7 +221,21 @@ bool UsesNoiseHysteresis(const ScoreLevels& levels) {
   return levels.noise >= 0.0 && levels.noise < ProbableLevel(levels);
 }
 
-cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
+cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radius_px) {
+  cv::Mat levels(full_mask.size(), CV_32FC1, cv::Scalar(-1.0f));
+  // Only around the object: the band lies within radius_px of its rectangle, and a band pixel's
+  // window reaches 2 radius_px + 1 further. The work is done on views of that part of the frame
+  // (morphology reads the frame's own pixels past a view's edge, as on the whole frame), and the
+  // window sums are of whole numbers (scores of 0..255, counts), exact in any order: the same
+  // levels as over the whole frame, for the part of the work the object's surroundings take.
+  const cv::Rect object = cv::boundingRect(full_mask);
+  if (object.empty()) return levels;
+  const int margin = 3 * radius_px + 3;
+  const cv::Rect part = cv::Rect(object.x - margin, object.y - margin, object.width + 2 * margin,
+                                 object.height + 2 * margin) &
+                        cv::Rect(0, 0, full_mask.cols, full_mask.rows);
+  const cv::Mat mask = full_mask(part);
+  const cv::Mat score = full_score(part);
   const cv::Mat inside = Eroded(mask, radius_px + 1);
   const cv::Mat outside = ~Dilated(mask, radius_px + 1);
   const cv::Mat band = Dilated(mask, radius_px) & ~Eroded(mask, radius_px);
@@ -236,14 +250,13 @@ cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
   cv::boxFilter(in_f, in_count, CV_32F, window, {-1, -1}, false);
   cv::boxFilter(score_f.mul(out_f), out_sum, CV_32F, window, {-1, -1}, false);
   cv::boxFilter(out_f, out_count, CV_32F, window, {-1, -1}, false);
-  cv::Mat levels(mask.size(), CV_32FC1, cv::Scalar(-1.0f));
   for (int y = 0; y < mask.rows; ++y) {
     const auto* b = band.ptr<std::uint8_t>(y);
     const auto* is = in_sum.ptr<float>(y);
     const auto* ic = in_count.ptr<float>(y);
     const auto* os = out_sum.ptr<float>(y);
     const auto* oc = out_count.ptr<float>(y);
-    auto* l = levels.ptr<float>(y);
+    auto* l = levels.ptr<float>(part.y + y) + part.x;
     for (int x = 0; x < mask.cols; ++x) {
       if (!b[x] || ic[x] < 0.5f || oc[x] < 0.5f) continue;
       const float outside_level = os[x] / oc[x];
