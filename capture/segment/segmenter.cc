@@ -205,10 +205,29 @@ class PipelineSegmenter final : public Segmenter {
         TrimapFromScore(colours_w, scored.score, scored.levels, roi_w, cut), cut);
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
-    cv::Mat mask = Enlarged(mask_w, factor, BackdropDistance(bgr, backdrop, shadows),
-                            EdgeLevels(mask_w, scored.score, 1));
+    cv::Mat mask =
+        Enlarged(mask_w, factor, DistanceAroundEdge(bgr, backdrop, shadows, mask_w, factor),
+                 EdgeLevels(mask_w, scored.score, 1));
     if (!roi.empty()) mask &= roi;
     return mask;
+  }
+
+  // BackdropDistance(bgr, backdrop, shadows) where Enlarged(mask_w, factor, ...) reads it: the
+  // full-size pixels of the work-size mask's edge, within a work pixel of its rectangle (zero
+  // elsewhere; an empty mask has no edge).
+  static cv::Mat DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
+                                    const cv::Mat& mask_w, int factor) {
+    cv::Mat score = cv::Mat::zeros(bgr.size(), CV_8UC1);
+    const cv::Rect object = cv::boundingRect(mask_w);
+    if (object.empty()) return score;
+    const cv::Rect near_w =
+        cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
+        cv::Rect(0, 0, mask_w.cols, mask_w.rows);
+    const cv::Rect near(near_w.x * factor, near_w.y * factor, near_w.width * factor,
+                        near_w.height * factor);
+    const cv::Mat part = backdrop.size() == bgr.size() ? backdrop(near) : backdrop;
+    BackdropDistance(bgr(near), part, shadows).copyTo(score(near));
+    return score;
   }
 
   // The clean-up every method ends with (see segmenter.h), at the work size: the radii and areas
