@@ -299,10 +299,16 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
   // it crosses the frame's edge (a vase cropped at the top, an object on the bottom edge) does not
   // count.
   const cv::Mat above_object = score > levels.object;
-  const std::vector<std::uint8_t> edge_colours =
-      hysteresis
-          ? EdgeColours(bgr, border & above_noise & ~Body(above_object), cv::countNonZero(border))
-          : std::vector<std::uint8_t>();
+  // (The object's body only where something rises above the noise on the frame's edge: most
+  // objects stand clear of it.)
+  std::vector<std::uint8_t> edge_colours;
+  if (hysteresis) {
+    const cv::Mat noise_on_edge = border & above_noise;
+    if (cv::countNonZero(noise_on_edge) > 0) {
+      edge_colours =
+          EdgeColours(bgr, noise_on_edge & ~Body(above_object), cv::countNonZero(border));
+    }
+  }
   const cv::Mat above = Without(above_object, bgr, edge_colours);
   const cv::Mat sure_object = Eroded(above, 2);
   if (hysteresis) {
