@@ -1,6 +1,7 @@
 #include "capture/segment/mask_ops.h"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 
 #include <opencv2/imgproc.hpp>
@@ -102,15 +103,34 @@ cv::Mat Reduced(const cv::Mat& image, int factor) {
 
 cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels) {
   if (factor <= 1 && levels.empty()) return mask;
+  // Only around the object (its rectangle and a pixel more, where its edge is): the gradient of
+  // a view reads the mask's own pixels past the view's edge. Elsewhere the enlarged mask is 0: for
+  // a factor that is a power of two, cv::resize's nearest pixel (the floor of x / factor, exact)
+  // is the same for the part as for the whole, so only the part is enlarged; for another, whose
+  // 1 / factor rounds, the whole is, as before.
+  const cv::Rect object = cv::boundingRect(mask);
+  const cv::Rect part = cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
+                        cv::Rect(0, 0, mask.cols, mask.rows);
   cv::Mat full;
-  cv::resize(mask, full, score.size(), 0.0, 0.0, cv::INTER_NEAREST);
+  if (factor >= 1 && std::has_single_bit(static_cast<unsigned>(factor)) &&
+      score.size() == cv::Size(mask.cols * factor, mask.rows * factor)) {
+    full = cv::Mat::zeros(score.size(), CV_8UC1);
+    if (object.empty()) return full;
+    const cv::Rect part_full(part.x * factor, part.y * factor, part.width * factor,
+                             part.height * factor);
+    cv::Mat enlarged = full(part_full);
+    cv::resize(mask(part), enlarged, part_full.size(), 0.0, 0.0, cv::INTER_NEAREST);
+  } else {
+    cv::resize(mask, full, score.size(), 0.0, 0.0, cv::INTER_NEAREST);
+    if (object.empty()) return full;
+  }
   cv::Mat edge;
-  cv::morphologyEx(mask, edge, cv::MORPH_GRADIENT, cv::Mat());
+  cv::morphologyEx(mask(part), edge, cv::MORPH_GRADIENT, cv::Mat());
   const bool one_level = levels.total() == 1;
-  for (int y = 0; y < mask.rows; ++y) {
-    const auto* e = edge.ptr<std::uint8_t>(y);
+  for (int y = part.y; y < part.y + part.height; ++y) {
+    const auto* e = edge.ptr<std::uint8_t>(y - part.y) - part.x;
     const float* l = one_level ? levels.ptr<float>(0) : levels.ptr<float>(y);
-    for (int x = 0; x < mask.cols; ++x) {
+    for (int x = part.x; x < part.x + part.width; ++x) {
       if (!e[x]) continue;
       const float level = one_level ? l[0] : l[x];
       if (level < 0.0f) continue;
