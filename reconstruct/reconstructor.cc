@@ -113,15 +113,23 @@ class HullReconstructor final : public Reconstructor {
       if (!textured) {
         return std::unexpected(textured.error());
       }
-      Logger("reconstruct")
-          ->info(
-              "texture: {} views, {} charts, atlas {}x{} at {:.2f} texel/px, {} faces unseen, "
-              "in {:.0f} ms",
-              textured->views_used, textured->charts, mesh.texture.cols, mesh.texture.rows,
-              textured->atlas_scale, textured->unseen_faces,
-              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
-                                                        texture_start)
-                  .count());
+      const double texture_ms = std::chrono::duration<double, std::milli>(
+                                    std::chrono::steady_clock::now() - texture_start)
+                                    .count();
+      if (texture.atlas) {
+        Logger("reconstruct")
+            ->info(
+                "texture: {} views, {} charts, atlas {}x{} at {:.2f} texel/px, {} faces unseen, "
+                "in {:.0f} ms",
+                textured->views_used, textured->charts, mesh.texture.cols, mesh.texture.rows,
+                textured->atlas_scale, textured->unseen_faces, texture_ms);
+      } else {
+        Logger("reconstruct")
+            ->info(
+                "texture: the vertices' colours from {} views (no atlas: no format carries "
+                "one), {} vertices unseen, in {:.0f} ms",
+                textured->views_used, textured->unseen_vertices, texture_ms);
+      }
     }
     if (on_stage) on_stage(MeshStage::kDone);
     return {};

@@ -424,6 +424,11 @@ class ImagesRun {
     // frame is its own.
     reconstruct_options.flat_bottom = false;
     reconstruct_options.share_frames = true;  // the set's frames are not written to again
+    // The texture atlas only for the formats that carry it (OBJ, glTF); the PLY and the VRML
+    // carry the vertices' colours.
+    reconstruct_options.texture =
+        std::any_of(options_.formats.begin(), options_.formats.end(),
+                    [](const std::string& format) { return format == "obj" || format == "glb"; });
     reconstruct_options.finish_once = true;
     reconstruct_options.meridian_row_step_px = options_.row_step_px;
     reconstruct_options.meridian_both_sides = options_.both_sides;
