@@ -10,8 +10,10 @@
 
 #include <unistd.h>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "reconstruct/image_set.h"
 #include "station/commands/reconstruct_images_command.h"
@@ -163,6 +165,37 @@ TEST_F(ReconstructImages, PhotosGiveATexturedVrml) {
   EXPECT_NE(text.find("ImageTexture"), std::string::npos);
   EXPECT_NE(text.find("texCoordIndex"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir_ / "out" / "model" / "model_tex00.jpg"));
+}
+
+// The hull's texture atlas is made when a format carries it (OBJ here: the photos' colour in the
+// PNG it names), and not for the PLY alone, which carries the vertices' colours.
+TEST_F(ReconstructImages, PhotosTextureTheObjAndColourThePly) {
+  const cv::Mat mask = BottleMask();
+  for (int k = 0; k < 18; ++k) {
+    cv::Mat photo(mask.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+    photo.setTo(cv::Scalar(40, 200, 90), mask);
+    ASSERT_TRUE(cv::imwrite((dir_ / "images" / fmt::format("shot_{:02}.png", k)).string(), photo));
+  }
+  ReconstructImagesOptions options = Options();
+  options.pattern.clear();
+  options.step_deg = 20.0;
+  options.formats = {"obj", "ply"};
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  const fs::path model = dir_ / "out" / "model";
+  const cv::Mat atlas = cv::imread((model / "model.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(atlas.empty());
+  cv::Mat lit;
+  cv::inRange(atlas, cv::Scalar(30, 180, 70), cv::Scalar(50, 220, 110), lit);
+  EXPECT_GT(cv::countNonZero(lit), atlas.total() / 10);  // the photos' green, not grey
+  std::ifstream mtl(model / "model.mtl");
+  const std::string material((std::istreambuf_iterator<char>(mtl)),
+                             std::istreambuf_iterator<char>());
+  EXPECT_NE(material.find("map_Kd model.png"), std::string::npos) << material;
+  fs::remove_all(dir_ / "out");
+  options.formats = {"ply"};
+  ASSERT_EQ(Run(options), kExitOk) << err_.str();
+  EXPECT_TRUE(fs::exists(model / "model.ply"));
+  EXPECT_FALSE(fs::exists(model / "model.png"));
 }
 
 TEST_F(ReconstructImages, PhotosAreSegmentedAndTheMasksKeptForAPersonToCheck) {
