@@ -2,10 +2,15 @@
 
 #include <algorithm>
 #include <cctype>
+#include <map>
+#include <set>
 #include <string>
 #include <system_error>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 namespace revolve {
 
@@ -69,6 +74,55 @@ Expected<std::vector<std::filesystem::path>> ListImageFiles(const std::filesyste
     return NaturalLess(x.filename().string(), y.filename().string());
   });
   return files;
+}
+
+std::string WhatAFolderHoldsInstead(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::map<std::string, int> by_extension;                   // regular files, lower-case extension
+  std::vector<std::pair<std::string, std::size_t>> folders;  // with images in them
+  int entries = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    ++entries;
+    std::error_code entry_ec;
+    if (entry.is_directory(entry_ec)) {
+      Expected<std::vector<std::filesystem::path>> inside = ListImageFiles(entry.path());
+      if (inside && !inside->empty()) {
+        folders.emplace_back(entry.path().filename().string(), inside->size());
+      }
+      continue;
+    }
+    if (!entry.is_regular_file(entry_ec)) continue;
+    std::string extension = entry.path().extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (!extension.empty()) ++by_extension[extension];
+  }
+  if (ec) return {};
+  if (entries == 0) return "it is empty";
+  // Photo formats cameras, phones and raw converters write that the readers here do not.
+  static const std::set<std::string> kPhotoFormats = {
+      ".heic", ".heif", ".avif", ".webp", ".jxl", ".gif", ".dng", ".cr2", ".cr3", ".nef",
+      ".arw",  ".orf",  ".rw2",  ".raf",  ".pef", ".srw", ".raw", ".jp2", ".exr", ".hdr"};
+  std::vector<std::string> photos;
+  for (const auto& [extension, count] : by_extension) {
+    if (kPhotoFormats.contains(extension)) {
+      photos.push_back(fmt::format("{} {} file{}", count, extension, count == 1 ? "" : "s"));
+    }
+  }
+  if (!photos.empty()) {
+    return fmt::format(
+        "it holds {}, a format revolve does not read: convert them to JPEG, PNG or TIFF first",
+        fmt::join(photos, " and "));
+  }
+  if (!folders.empty()) {
+    std::sort(folders.begin(), folders.end());
+    const auto& [name, count] = folders.front();
+    return fmt::format(
+        "its folder {}/ holds {} image{}{}: pass that folder", name, count, count == 1 ? "" : "s",
+        folders.size() > 1 ? fmt::format(" ({} more folders hold images)", folders.size() - 1)
+                           : std::string());
+  }
+  return {};
 }
 
 }  // namespace revolve

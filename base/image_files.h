@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -22,5 +23,11 @@ bool NaturalLess(std::string_view a, std::string_view b);
 // Errors: not_found naming `dir` when it is not a folder, or naming an image file name that is
 // a dangling symbolic link; io when it cannot be listed.
 Expected<std::vector<std::filesystem::path>> ListImageFiles(const std::filesystem::path& dir);
+
+// For a folder with no image file ListImageFiles reads: what it holds instead, as a sentence to
+// follow an error ("it holds 36 .heic files, a format revolve does not read: convert them to JPEG,
+// PNG or TIFF first", "its folder shots/ holds 36 images: pass that folder", "it is empty"); empty
+// when none of these applies.
+std::string WhatAFolderHoldsInstead(const std::filesystem::path& dir);
 
 }  // namespace revolve

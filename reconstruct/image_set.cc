@@ -431,9 +431,11 @@ Expected<ImageSet> LoadImageSet(const std::filesystem::path& dir, const ImageSet
   ImageSet set;
   if (options.pattern.empty()) {
     if (files.empty()) {
-      return MakeError(ErrorCode::kNotFound,
-                       fmt::format("{}: no image file (.png .tif .tiff .jpg .jpeg .bmp .pgm .ppm)",
-                                   dir.string()));
+      const std::string instead = WhatAFolderHoldsInstead(dir);
+      return MakeError(
+          ErrorCode::kNotFound,
+          fmt::format("{}: no image file (.png .tif .tiff .jpg .jpeg .bmp .pgm .ppm){}",
+                      dir.string(), instead.empty() ? "" : ": " + instead));
     }
     for (std::size_t i = 0; i < files.size(); ++i) {
       SetImage image;

@@ -376,6 +376,31 @@ TEST_F(ImageSetFolder, JpegPhotosAreTurnedUprightByTheirExif) {
   EXPECT_EQ(again->size(), cv::Size(64, 48));
 }
 
+// A folder with no image revolve reads says what it holds instead: phone or raw photos to
+// convert, a folder of images one level down, or nothing.
+TEST_F(ImageSetFolder, AFolderWithoutImagesSaysWhatItHolds) {
+  const auto message = [&] {
+    const Expected<ImageSet> set = LoadImageSet(dir_, ImageSetOptions{});
+    EXPECT_FALSE(set.has_value());
+    return set.has_value() ? std::string() : set.error().message;
+  };
+  EXPECT_NE(message().find("it is empty"), std::string::npos) << message();
+  for (int i = 0; i < 3; ++i) std::ofstream(dir_ / fmt::format("IMG_{}.HEIC", i)) << "ftypheic";
+  std::ofstream(dir_ / "notes.txt") << "turntable, 10 degrees";
+  EXPECT_NE(message().find("it holds 3 .heic files, a format revolve does not read: convert them "
+                           "to JPEG, PNG or TIFF first"),
+            std::string::npos)
+      << message();
+  for (int i = 0; i < 3; ++i) fs::remove(dir_ / fmt::format("IMG_{}.HEIC", i));
+  fs::create_directories(dir_ / "shots");
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(cv::imwrite((dir_ / "shots" / fmt::format("view{}.png", i)).string(),
+                            cv::Mat(48, 64, CV_8UC1, cv::Scalar(0))));
+  }
+  EXPECT_NE(message().find("its folder shots/ holds 4 images: pass that folder"), std::string::npos)
+      << message();
+}
+
 TEST_F(ImageSetFolder, SixteenBitImagesAreScaledToEightBits) {
   cv::Mat photo(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
   cv::circle(photo, {30, 20}, 8, cv::Scalar(30, 140, 200), cv::FILLED);
