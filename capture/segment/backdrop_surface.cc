@@ -51,17 +51,38 @@ std::optional<BackdropSurface> BackdropSurface::FitToOutline(const cv::Mat& bgr,
     terms.push_back(TermsAt((p.x - surface.cx_) / surface.sx_, (p.y - surface.cy_) / surface.sy_));
   }
   std::vector<double> residuals(points.size());
+  using Normal = Eigen::Matrix<double, 6, 6>;
+  // The normal matrix's lower triangle, summed point by point in order (each element as the
+  // whole outer product's would be), then mirrored. The first round takes every point: one
+  // matrix for the three channels.
+  const auto add = [](Normal* normal, const Terms& t) {
+    for (int b = 0; b < 6; ++b) {
+      for (int a = b; a < 6; ++a) (*normal)(a, b) += t(a) * t(b);
+    }
+  };
+  const auto mirrored = [](Normal normal) {
+    normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
+    return normal;
+  };
+  Normal every_point = Normal::Zero();
+  for (const Terms& t : terms) add(&every_point, t);
+  every_point = mirrored(every_point);
   for (int c = 0; c < 3; ++c) {
     Terms fit = Terms::Zero();
     double limit = std::numeric_limits<double>::infinity();
     for (int round = 0; round < 3; ++round) {
-      Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+      Normal normal = Normal::Zero();
       Terms rhs = Terms::Zero();
       for (std::size_t i = 0; i < points.size(); ++i) {
         const double value = bgr.at<cv::Vec3b>(points[i])[c];
-        if (std::abs(value - fit.dot(terms[i])) > limit) continue;
-        normal += terms[i] * terms[i].transpose();
+        if (round > 0 && std::abs(value - fit.dot(terms[i])) > limit) continue;
+        if (round > 0) add(&normal, terms[i]);
         rhs += value * terms[i];
+      }
+      if (round == 0) {
+        normal = every_point;
+      } else {
+        normal = mirrored(normal);
       }
       const Terms next = normal.ldlt().solve(rhs);
       if (!next.allFinite()) return std::nullopt;
