@@ -239,28 +239,29 @@ cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radi
   const cv::Mat inside = Eroded(mask, radius_px + 1);
   const cv::Mat outside = ~Dilated(mask, radius_px + 1);
   const cv::Mat band = Dilated(mask, radius_px) & ~Eroded(mask, radius_px);
-  cv::Mat score_f;
-  score.convertTo(score_f, CV_32F);
-  cv::Mat in_f, out_f;
-  inside.convertTo(in_f, CV_32F, 1.0 / 255.0);
-  outside.convertTo(out_f, CV_32F, 1.0 / 255.0);
+  // Whole-number window sums of the inside's and the outside's scores, and of their pixels
+  // (255 each): exact in 32 bits (the float sums they replace were the same values).
   const cv::Size window(4 * radius_px + 3, 4 * radius_px + 3);
   cv::Mat in_sum, in_count, out_sum, out_count;
-  cv::boxFilter(score_f.mul(in_f), in_sum, CV_32F, window, {-1, -1}, false);
-  cv::boxFilter(in_f, in_count, CV_32F, window, {-1, -1}, false);
-  cv::boxFilter(score_f.mul(out_f), out_sum, CV_32F, window, {-1, -1}, false);
-  cv::boxFilter(out_f, out_count, CV_32F, window, {-1, -1}, false);
+  cv::boxFilter(score & inside, in_sum, CV_32S, window, {-1, -1}, false);
+  cv::boxFilter(inside, in_count, CV_32S, window, {-1, -1}, false);
+  cv::boxFilter(score & outside, out_sum, CV_32S, window, {-1, -1}, false);
+  cv::boxFilter(outside, out_count, CV_32S, window, {-1, -1}, false);
   for (int y = 0; y < mask.rows; ++y) {
     const auto* b = band.ptr<std::uint8_t>(y);
-    const auto* is = in_sum.ptr<float>(y);
-    const auto* ic = in_count.ptr<float>(y);
-    const auto* os = out_sum.ptr<float>(y);
-    const auto* oc = out_count.ptr<float>(y);
+    const auto* is = in_sum.ptr<std::int32_t>(y);
+    const auto* ic = in_count.ptr<std::int32_t>(y);
+    const auto* os = out_sum.ptr<std::int32_t>(y);
+    const auto* oc = out_count.ptr<std::int32_t>(y);
     auto* l = levels.ptr<float>(part.y + y) + part.x;
     for (int x = 0; x < mask.cols; ++x) {
-      if (!b[x] || ic[x] < 0.5f || oc[x] < 0.5f) continue;
-      const float outside_level = os[x] / oc[x];
-      l[x] = outside_level + kEdgeFraction * (is[x] / ic[x] - outside_level);
+      if (!b[x] || ic[x] == 0 || oc[x] == 0) continue;
+      const int inside_count = ic[x] / 255;  // exact: 255 per pixel
+      const int outside_count = oc[x] / 255;
+      const float outside_level = static_cast<float>(os[x]) / static_cast<float>(outside_count);
+      l[x] = outside_level +
+             kEdgeFraction *
+                 (static_cast<float>(is[x]) / static_cast<float>(inside_count) - outside_level);
     }
   }
   return levels;

@@ -16,6 +16,11 @@
 namespace revolve::capture {
 namespace {
 
+// BackdropDistance's `count` pixels of one row: `p` and (per_pixel) `b` point at their BGR
+// pixels, `b` at the one backdrop colour otherwise; into `o`.
+void BackdropDistanceRow(const std::uint8_t* p, const std::uint8_t* b, bool per_pixel, bool shadows,
+                         int count, std::uint8_t* o);
+
 constexpr int kMaxMorphologyRadiusPx = 50;
 constexpr int kMaxCoordinatePx = 1 << 20;
 // A chroma key whose chroma (|Cb, Cr| in 8-bit units) is weaker than this is grey: no key.
@@ -213,20 +218,41 @@ class PipelineSegmenter final : public Segmenter {
   }
 
   // BackdropDistance(bgr, backdrop, shadows) where Enlarged(mask_w, factor, ...) reads it: the
-  // full-size pixels of the work-size mask's edge, within a work pixel of its rectangle (zero
-  // elsewhere; an empty mask has no edge).
+  // full-size pixels of the work-size mask's edge (its morphological gradient, found on the same
+  // part of it as Enlarged finds it; zero elsewhere; an empty mask has no edge). The distance is
+  // a pixel's own: the same values as over the whole frame.
   static cv::Mat DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
                                     const cv::Mat& mask_w, int factor) {
     cv::Mat score = cv::Mat::zeros(bgr.size(), CV_8UC1);
     const cv::Rect object = cv::boundingRect(mask_w);
     if (object.empty()) return score;
-    const cv::Rect near_w =
+    const cv::Rect part =
         cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
         cv::Rect(0, 0, mask_w.cols, mask_w.rows);
-    const cv::Rect near(near_w.x * factor, near_w.y * factor, near_w.width * factor,
-                        near_w.height * factor);
-    const cv::Mat part = backdrop.size() == bgr.size() ? backdrop(near) : backdrop;
-    BackdropDistance(bgr(near), part, shadows).copyTo(score(near));
+    cv::Mat edge;
+    cv::morphologyEx(mask_w(part), edge, cv::MORPH_GRADIENT, cv::Mat());
+    const bool per_pixel = backdrop.size() == bgr.size();
+    for (int y = 0; y < edge.rows; ++y) {
+      const std::uint8_t* e = edge.ptr<std::uint8_t>(y);
+      for (int x = 0; x < edge.cols;) {
+        if (!e[x]) {
+          ++x;
+          continue;
+        }
+        const int first = x;
+        while (x < edge.cols && e[x]) ++x;
+        const int column = (part.x + first) * factor;
+        const int count = (x - first) * factor;
+        for (int dy = 0; dy < factor; ++dy) {
+          const int row = (part.y + y) * factor + dy;
+          BackdropDistanceRow(
+              bgr.ptr<std::uint8_t>(row) + 3 * static_cast<std::ptrdiff_t>(column),
+              per_pixel ? backdrop.ptr<std::uint8_t>(row) + 3 * static_cast<std::ptrdiff_t>(column)
+                        : backdrop.ptr<std::uint8_t>(0),
+              per_pixel, shadows, count, score.ptr<std::uint8_t>(row) + column);
+        }
+      }
+    }
     return score;
   }
 
@@ -527,8 +553,10 @@ cv::Mat RegionOfInterestMask(const SegmentOptions& options, cv::Size size) {
 // The shadow model's allowance for noise in a clipped channel (BackdropDistance).
 constexpr int kClippedSlackLevels = 12;
 
-cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows) {
-  // sqrt(i) rounded and saturated, for the squared distances that stay below 255^2.
+namespace {
+
+// sqrt(i) rounded and saturated, for the squared distances that stay below 255^2.
+const std::vector<std::uint8_t>& RootTable() {
   static const std::vector<std::uint8_t> root = [] {
     std::vector<std::uint8_t> table(255 * 255 + 1);
     for (std::size_t i = 0; i < table.size(); ++i) {
@@ -536,54 +564,68 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
     }
     return table;
   }();
+  return root;
+}
+
+}  // namespace
+
+namespace {
+
+void BackdropDistanceRow(const std::uint8_t* p, const std::uint8_t* b, bool per_pixel, bool shadows,
+                         int count, std::uint8_t* o) {
+  const std::uint8_t* root = RootTable().data();
   constexpr int kMaxSquare = 255 * 255;
+  if (!shadows) {  // the common case, kept free of branches
+    const std::ptrdiff_t step = per_pixel ? 3 : 0;
+    for (std::ptrdiff_t x = 0; x < count; ++x) {
+      const std::uint8_t* k = b + step * x;
+      const int d0 = p[3 * x] - k[0], d1 = p[3 * x + 1] - k[1], d2 = p[3 * x + 2] - k[2];
+      o[x] = root[static_cast<std::size_t>(std::min(d0 * d0 + d1 * d1 + d2 * d2, kMaxSquare))];
+    }
+    return;
+  }
+  for (std::ptrdiff_t x = 0; x < count; ++x) {
+    const std::uint8_t* c = p + 3 * x;
+    const std::uint8_t* k = b + (per_pixel ? 3 * x : 0);
+    const int d0 = c[0] - k[0], d1 = c[1] - k[1], d2 = c[2] - k[2];
+    const int dist2 = d0 * d0 + d1 * d1 + d2 * d2;
+    std::uint8_t score = root[static_cast<std::size_t>(std::min(dist2, kMaxSquare))];
+    // A shadow: the backdrop's colour scaled by a (0.35..1.1); only its chroma counts, twice
+    // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2). One channel of the backdrop at 255 and the
+    // others below is clipped (a white blown out in red under warm light): its true level is
+    // 255 or more, so a and the chroma come from the other two, and the pixel's level there
+    // need only be at least a 255 (less a noise allowance). (Every channel at 255 is a white
+    // blown out evenly, and its shadows are grey: the key as it is.)
+    int known[3] = {k[0] < 255, k[1] < 255, k[2] < 255};
+    if (known[0] + known[1] + known[2] != 2) known[0] = known[1] = known[2] = 1;
+    const int norm2 = known[0] * k[0] * k[0] + known[1] * k[1] * k[1] + known[2] * k[2] * k[2];
+    if (norm2 > 900) {
+      const int dot = known[0] * c[0] * k[0] + known[1] * c[1] * k[1] + known[2] * c[2] * k[2];
+      bool consistent = true;
+      for (int i = 0; i < 3; ++i) {
+        if (!known[i]) consistent &= (c[i] + kClippedSlackLevels) * norm2 >= 255 * dot;
+      }
+      if (consistent && 20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
+        const int c2 = known[0] * c[0] * c[0] + known[1] * c[1] * c[1] + known[2] * c[2] * c[2];
+        const float off2 = std::max(0.0f, static_cast<float>(c2) - static_cast<float>(dot) *
+                                                                       static_cast<float>(dot) /
+                                                                       static_cast<float>(norm2));
+        const int four_off2 = static_cast<int>(std::min(4.0f * off2 + 0.5f, float(kMaxSquare)));
+        score = std::min(score, root[static_cast<std::size_t>(four_off2)]);
+      }
+    }
+    o[x] = score;
+  }
+}
+
+}  // namespace
+
+cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool shadows) {
   const bool per_pixel = backdrop_bgr.size() == bgr.size();
   cv::Mat out(bgr.size(), CV_8UC1);
   for (int y = 0; y < bgr.rows; ++y) {
-    const auto* p = bgr.ptr<std::uint8_t>(y);
-    const auto* b = backdrop_bgr.ptr<std::uint8_t>(per_pixel ? y : 0);
-    auto* o = out.ptr<std::uint8_t>(y);
-    if (!shadows) {  // the common case, kept free of branches
-      const std::ptrdiff_t step = per_pixel ? 3 : 0;
-      for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
-        const std::uint8_t* k = b + step * x;
-        const int d0 = p[3 * x] - k[0], d1 = p[3 * x + 1] - k[1], d2 = p[3 * x + 2] - k[2];
-        o[x] = root[static_cast<std::size_t>(std::min(d0 * d0 + d1 * d1 + d2 * d2, kMaxSquare))];
-      }
-      continue;
-    }
-    for (std::ptrdiff_t x = 0; x < bgr.cols; ++x) {
-      const std::uint8_t* c = p + 3 * x;
-      const std::uint8_t* k = b + (per_pixel ? 3 * x : 0);
-      const int d0 = c[0] - k[0], d1 = c[1] - k[1], d2 = c[2] - k[2];
-      const int dist2 = d0 * d0 + d1 * d1 + d2 * d2;
-      std::uint8_t score = root[static_cast<std::size_t>(std::min(dist2, kMaxSquare))];
-      // A shadow: the backdrop's colour scaled by a (0.35..1.1); only its chroma counts, twice
-      // |c - a k| = 2 sqrt(|c|^2 - (c.k)^2 / |k|^2). One channel of the backdrop at 255 and the
-      // others below is clipped (a white blown out in red under warm light): its true level is
-      // 255 or more, so a and the chroma come from the other two, and the pixel's level there
-      // need only be at least a 255 (less a noise allowance). (Every channel at 255 is a white
-      // blown out evenly, and its shadows are grey: the key as it is.)
-      int known[3] = {k[0] < 255, k[1] < 255, k[2] < 255};
-      if (known[0] + known[1] + known[2] != 2) known[0] = known[1] = known[2] = 1;
-      const int norm2 = known[0] * k[0] * k[0] + known[1] * k[1] * k[1] + known[2] * k[2] * k[2];
-      if (norm2 > 900) {
-        const int dot = known[0] * c[0] * k[0] + known[1] * c[1] * k[1] + known[2] * c[2] * k[2];
-        bool consistent = true;
-        for (int i = 0; i < 3; ++i) {
-          if (!known[i]) consistent &= (c[i] + kClippedSlackLevels) * norm2 >= 255 * dot;
-        }
-        if (consistent && 20 * dot >= 7 * norm2 && 10 * dot <= 11 * norm2) {
-          const int c2 = known[0] * c[0] * c[0] + known[1] * c[1] * c[1] + known[2] * c[2] * c[2];
-          const float off2 = std::max(0.0f, static_cast<float>(c2) - static_cast<float>(dot) *
-                                                                         static_cast<float>(dot) /
-                                                                         static_cast<float>(norm2));
-          const int four_off2 = static_cast<int>(std::min(4.0f * off2 + 0.5f, float(kMaxSquare)));
-          score = std::min(score, root[static_cast<std::size_t>(four_off2)]);
-        }
-      }
-      o[x] = score;
-    }
+    BackdropDistanceRow(bgr.ptr<std::uint8_t>(y), backdrop_bgr.ptr<std::uint8_t>(per_pixel ? y : 0),
+                        per_pixel, shadows, bgr.cols, out.ptr<std::uint8_t>(y));
   }
   return out;
 }

@@ -144,56 +144,95 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   BackdropSurvey survey;
   const cv::Size size = frames.front().size();
   const std::vector<cv::Point> points = OutlinePoints(size, 2);
-  std::array<std::vector<std::uint8_t>, 3> all;
-  std::size_t still = 0, samples = 0;
-  std::vector<std::array<std::uint8_t, 3>> values(frames.size());
-  for (const cv::Point& p : points) {
-    std::array<std::vector<std::uint8_t>, 3> across;
-    for (const cv::Mat& frame : frames) {
-      const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
-      for (int k = 0; k < 3; ++k) {
-        all[k].push_back(c[k]);
-        across[k].push_back(c[k]);
-      }
-    }
-    if (frames.size() < 3) continue;
-    std::array<int, 3> median{};
-    std::array<std::vector<std::uint8_t>, 3> sorted = across;
-    for (int k = 0; k < 3; ++k) median[k] = Median(sorted[k]);
-    for (std::size_t f = 0; f < frames.size(); ++f) {
-      int worst = 0;
-      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(int(across[k][f]) - median[k]));
-      still += worst <= kStillLevels;
-      ++samples;
-    }
-  }
-  std::array<std::vector<std::uint8_t>, 3> sorted = all;
-  for (int k = 0; k < 3; ++k) survey.bgr[k] = Median(sorted[k]);
-  // Uniform: within 12 levels of the smooth surface fitted to its frame's outline (even light,
-  // light from one side and vignetting are even; a cloth's folds and texture are not), or of the
-  // median colour where no surface fits.
-  // Each frame's count on all cores, summed in frame order.
-  std::vector<std::size_t> uniform_in(frames.size(), 0);
-  tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
+  const std::size_t frame_count = frames.size();
+  // Each frame on all cores: its outline's colours into their slots ([point][frame][channel]),
+  // and its count of outline points within kStillLevels of the smooth surface fitted to its
+  // outline (even light, light from one side and vignetting are even; a cloth's folds and
+  // texture are not), or, where no surface fits, of the set's median colour (counted below).
+  std::vector<std::array<std::uint8_t, 3>> values(points.size() * frame_count);
+  std::vector<std::size_t> uniform_in(frame_count, 0);
+  std::vector<char> fitted(frame_count, 0);
+  tbb::parallel_for(std::size_t{0}, frame_count, [&](std::size_t f) {
     const cv::Mat& frame = frames[f];
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const cv::Vec3b& c = frame.at<cv::Vec3b>(points[i]);
+      values[i * frame_count + f] = {c[0], c[1], c[2]};
+    }
     const std::optional<BackdropSurface> surface =
         BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, size.width, size.height));
+    if (!surface) return;
+    fitted[f] = 1;
     for (const cv::Point& p : points) {
       const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
-      const cv::Vec3d expected =
-          surface ? surface->At(p.x, p.y) : cv::Vec3d(survey.bgr[0], survey.bgr[1], survey.bgr[2]);
+      const cv::Vec3d expected = surface->At(p.x, p.y);
       double worst = 0.0;
       for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - expected[k]));
       uniform_in[f] += worst <= kStillLevels;
     }
   });
+  // Still: a point's colour within kStillLevels of its median across the frames (with 3 frames
+  // or more). The points on all cores in blocks; whole-number counts, summed in block order.
+  constexpr std::size_t kBlock = 256;
+  const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
+  std::vector<std::array<std::array<std::size_t, 256>, 3>> histograms(blocks);
+  std::vector<std::size_t> still_in(blocks, 0);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t block) {
+    std::array<std::array<std::size_t, 256>, 3>& histogram = histograms[block];
+    for (auto& channel : histogram) channel.fill(0);
+    std::array<std::vector<std::uint8_t>, 3> across;
+    for (auto& v : across) v.resize(frame_count);
+    const std::size_t end = std::min(points.size(), (block + 1) * kBlock);
+    for (std::size_t i = block * kBlock; i < end; ++i) {
+      const std::array<std::uint8_t, 3>* colours = values.data() + i * frame_count;
+      for (std::size_t f = 0; f < frame_count; ++f) {
+        for (int k = 0; k < 3; ++k) {
+          across[k][f] = colours[f][k];
+          ++histogram[k][colours[f][k]];
+        }
+      }
+      if (frame_count < 3) continue;
+      std::array<int, 3> median{};
+      for (int k = 0; k < 3; ++k) median[k] = Median(across[k]);
+      for (std::size_t f = 0; f < frame_count; ++f) {
+        int worst = 0;
+        for (int k = 0; k < 3; ++k)
+          worst = std::max(worst, std::abs(int(colours[f][k]) - median[k]));
+        still_in[block] += worst <= kStillLevels;
+      }
+    }
+  });
+  // The median of every outline colour (Median's: the value at index n / 2 in order).
+  const std::size_t samples = points.size() * frame_count;
+  for (int k = 0; k < 3; ++k) {
+    std::size_t below = 0;
+    for (int level = 0; level < 256; ++level) {
+      for (const auto& histogram : histograms) below += histogram[k][level];
+      if (below > samples / 2) {
+        survey.bgr[k] = level;
+        break;
+      }
+    }
+  }
   std::size_t uniform = 0;
-  for (const std::size_t count : uniform_in) uniform += count;
-  survey.outline_uniformity = all[0].empty() ? 0.0 : double(uniform) / double(all[0].size());
+  for (std::size_t f = 0; f < frame_count; ++f) {
+    if (!fitted[f]) {
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const std::array<std::uint8_t, 3>& c = values[i * frame_count + f];
+        double worst = 0.0;
+        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - survey.bgr[k]));
+        uniform_in[f] += worst <= kStillLevels;
+      }
+    }
+    uniform += uniform_in[f];
+  }
+  std::size_t still = 0;
+  for (const std::size_t count : still_in) still += count;
+  survey.outline_uniformity = samples == 0 ? 0.0 : double(uniform) / double(samples);
   const double b = survey.bgr[0], g = survey.bgr[1], r = survey.bgr[2];
   survey.luma = 0.299 * r + 0.587 * g + 0.114 * b;
   survey.chroma = std::hypot(0.564 * (b - survey.luma), 0.713 * (r - survey.luma));
-  survey.outline_stillness = samples > 0 ? double(still) / double(samples) : 0.0;
+  survey.outline_stillness =
+      frame_count >= 3 && samples > 0 ? double(still) / double(samples) : 0.0;
   survey.kind = survey.chroma >= kColouredChroma ? "coloured"
                 : survey.luma < kDarkLuma        ? "dark"
                 : survey.luma > kLightLuma       ? "light"

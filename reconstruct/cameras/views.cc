@@ -147,17 +147,33 @@ struct MaskMoments {
   std::int64_t m01 = 0;
 };
 
-MaskMoments Moments(const cv::Mat& mask) {
+// Rows in blocks of at most kMomentBlock columns, summed in 32 bits (a block's column sum is
+// below 2^23) and added to the 64-bit moments: whole numbers, the same sums in any grouping. The
+// blocks' loops run on vectors (built for AVX2 too where the processor has it).
+constexpr int kMomentBlock = 4096;
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+MaskMoments
+Moments(const cv::Mat& mask) {
   MaskMoments moments;
   for (int y = 0; y < mask.rows; ++y) {
     const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
-    // Branch-free; a row's sums fit 64 bits at any width.
     std::int64_t count = 0;
     std::int64_t sum_x = 0;
-    for (int x = 0; x < mask.cols; ++x) {
-      const std::int64_t set = row[x] != 0;
-      count += set;
-      sum_x += set * x;
+    for (int x0 = 0; x0 < mask.cols; x0 += kMomentBlock) {
+      const int n = std::min(kMomentBlock, mask.cols - x0);
+      const std::uint8_t* block = row + x0;
+      std::uint32_t block_count = 0;
+      std::uint32_t block_sum = 0;  // of the columns from x0
+      for (int x = 0; x < n; ++x) {
+        const std::uint32_t set = block[x] != 0 ? 1u : 0u;
+        block_count += set;
+        block_sum += set * static_cast<std::uint32_t>(x);
+      }
+      count += block_count;
+      sum_x += static_cast<std::int64_t>(block_sum) + static_cast<std::int64_t>(block_count) * x0;
     }
     moments.m00 += count;
     moments.m10 += sum_x;

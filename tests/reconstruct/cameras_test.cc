@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -155,6 +157,34 @@ TEST(NormaliseViewSign, FlipsOnlyWhenTheCentreIsBehind) {
   EXPECT_TRUE(NormaliseViewSign(view, centre).pixel_from_object.isApprox(view.pixel_from_object));
 }
 
+// The centre is the least-squares point of the rays through the silhouettes' centroids, as
+// cv::moments finds them, on masks wider than the blocks the moments are summed in.
+TEST(SilhouetteCentre, RaysThroughTheCentroidsOfWideMasks) {
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    cv::Mat mask = cv::Mat::zeros(120, 9000, CV_8UC1);
+    cv::ellipse(mask, cv::Point(4100 + 300 * k, 60), cv::Size(900 + 50 * k, 40), 0.0, 0.0, 360.0,
+                cv::Scalar(255), cv::FILLED);
+    cv::line(mask, cv::Point(8990, 3 + k), cv::Point(100, 90), cv::Scalar(7 + k));
+    masks.push_back(mask);
+    views.push_back(ThesisView(mask.cols, mask.rows, 50.0 * k));
+    const cv::Moments m = cv::moments(mask, /*binaryImage=*/true);
+    const std::optional<Ray> ray =
+        BackProject(views.back(), Eigen::Vector2d(m.m10 / m.m00, m.m01 / m.m00));
+    ASSERT_TRUE(ray.has_value());
+    const Eigen::Matrix3d projector =
+        Eigen::Matrix3d::Identity() - ray->direction * ray->direction.transpose();
+    normal += projector;
+    rhs += projector * ray->origin;
+  }
+  const Expected<Eigen::Vector3d> centre = SilhouetteCentre(masks, views);
+  ASSERT_TRUE(centre.has_value()) << centre.error().ToString();
+  const Eigen::Vector3d expected = normal.ldlt().solve(rhs);
+  EXPECT_NEAR((*centre - expected).norm(), 0.0, 1e-9 * expected.norm());
+}
 TEST(CarvingVolume, FoundFromSilhouettesWhateverTheSigns) {
   const Rig rig = testing::StationRig(450.0, 10.0, 40.0);
   const testing::Sphere sphere{Eigen::Vector3d(10.0, -5.0, 45.0), 30.0};
