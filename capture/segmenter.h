@@ -87,6 +87,9 @@ struct SegmentOptions {
 // file:line:column and the key.
 Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section);
 
+// What a caller found of an image before segmenting it (capture/segment/backdrop_surface.h).
+struct FrameFacts;
+
 class Segmenter {
  public:
   virtual ~Segmenter() = default;
@@ -96,6 +99,11 @@ class Segmenter {
   // Errors: bad_input for an empty or unsupported image, or (method = background) a missing
   // background frame or one of another size.
   virtual Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const = 0;
+
+  // Segment, given what the caller found of `image` already (the set's survey), which is then
+  // not found again: the same mask and errors as Segment(image, background).
+  virtual Expected<cv::Mat> SegmentWithFacts(const cv::Mat& image, const cv::Mat& background,
+                                             const FrameFacts& facts) const;
 
   // True when Segment needs a background frame (method = background).
   virtual bool NeedsBackground() const { return false; }

@@ -47,4 +47,11 @@ class BackdropSurface {
   std::array<Terms, 3> channels_{};
 };
 
+// What the set's survey (SurveyBackdrop) found of one frame, for Segmenter::SegmentWithFacts:
+// the surface fitted to its whole outline, FitToOutline(frame, the whole frame) (nullopt where
+// none fits), which graphcut fits without a region of interest.
+struct FrameFacts {
+  std::optional<BackdropSurface> whole_outline;
+};
+
 }  // namespace revolve::capture

@@ -54,11 +54,12 @@ Expected<void> CheckImage(const cv::Mat& image, std::string_view what) {
 // bounding rectangle shows it lit unevenly (its BackdropSurface rises more than
 // kMinBackdropSlope levels: light from one side, a lens's vignetting): that surface at every
 // pixel (CV_8UC3 of the image's size); empty when the backdrop is even (one colour then).
-cv::Mat UnevenBackdrop(const cv::Mat& bgr, const cv::Mat& roi) {
-  const std::optional<BackdropSurface> surface =
-      BackdropSurface::FitToOutline(bgr, RoiBox(bgr.size(), roi));
+cv::Mat UnevenBackdrop(const std::optional<BackdropSurface>& surface, cv::Size size) {
   if (!surface || !(surface->Rise() > kMinBackdropSlope)) return {};
-  return surface->Image(bgr.size());
+  return surface->Image(size);
+}
+cv::Mat UnevenBackdrop(const cv::Mat& bgr, const cv::Mat& roi) {
+  return UnevenBackdrop(BackdropSurface::FitToOutline(bgr, RoiBox(bgr.size(), roi)), bgr.size());
 }
 
 // `bgr` with the unevenness of `backdrop` (CV_8UC3, both of one size) taken out: bgr - backdrop +
@@ -133,6 +134,17 @@ class PipelineSegmenter final : public Segmenter {
   bool NeedsBackground() const override { return options_.method == "background"; }
 
   Expected<cv::Mat> Segment(const cv::Mat& image, const cv::Mat& background) const override {
+    return Run(image, background, nullptr);
+  }
+
+  Expected<cv::Mat> SegmentWithFacts(const cv::Mat& image, const cv::Mat& background,
+                                     const FrameFacts& facts) const override {
+    return Run(image, background, &facts);
+  }
+
+  // The segmentation; `facts` (may be null): the set survey's, for `image`.
+  Expected<cv::Mat> Run(const cv::Mat& image, const cv::Mat& background,
+                        const FrameFacts* facts) const {
     if (auto ok = CheckImage(image, "image"); !ok) return std::unexpected(ok.error());
     const bool has_roi = !options_.roi_px.empty() || !options_.roi_polygon_px.empty() ||
                          !options_.exclude_px.empty();
@@ -147,7 +159,11 @@ class PipelineSegmenter final : public Segmenter {
                                               options_.backdrop_bgr[2])
                                  : EstimateBackdropColour(bgr, roi);
       const bool shadows = Luma(key) >= kShadowModelMinLuma;
-      const cv::Mat uneven = UnevenBackdrop(bgr, roi);
+      // The survey's fit is the one over the whole frame: the region of interest's rectangle
+      // without one.
+      const cv::Mat uneven = facts != nullptr && roi.empty()
+                                 ? UnevenBackdrop(facts->whole_outline, bgr.size())
+                                 : UnevenBackdrop(bgr, roi);
       if (uneven.empty())
         return SegmentByCut(bgr, cv::Mat(1, 1, CV_8UC3, key), shadows, roi, factor);
       return SegmentByCut(bgr, uneven, shadows, roi, factor, &key);
@@ -723,6 +739,11 @@ Expected<SegmentOptions> ParseSegmentOptions(const config::Section& section) {
     return std::unexpected(section.BadValue(ok.error().key, ok.error().what));
   }
   return options;
+}
+
+Expected<cv::Mat> Segmenter::SegmentWithFacts(const cv::Mat& image, const cv::Mat& background,
+                                              const FrameFacts& /*facts*/) const {
+  return Segment(image, background);
 }
 
 Expected<std::unique_ptr<Segmenter>> CreateSegmenter(const SegmentOptions& options) {

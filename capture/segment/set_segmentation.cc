@@ -117,15 +117,15 @@ Expected<cv::Mat> ReadBackground(const SegmentOptions& options, cv::Size size) {
 }
 
 Expected<std::vector<cv::Mat>> SegmentAll(const std::vector<cv::Mat>& frames,
-                                          const SegmentOptions& options,
-                                          const cv::Mat& background) {
+                                          const SegmentOptions& options, const cv::Mat& background,
+                                          const std::vector<FrameFacts>& facts) {
   Expected<std::unique_ptr<Segmenter>> segmenter = CreateSegmenter(options);
   if (!segmenter) return std::unexpected(segmenter.error());
   // The frames on all cores, each into its slot (a segmenter is const: Segment shares nothing
   // between frames); the first error in frame order is returned.
   std::vector<Expected<cv::Mat>> results(frames.size(), cv::Mat());
   tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t i) {
-    results[i] = (*segmenter)->Segment(frames[i], background);
+    results[i] = (*segmenter)->SegmentWithFacts(frames[i], background, facts[i]);
   });
   std::vector<cv::Mat> masks;
   masks.reserve(frames.size());
@@ -140,7 +140,7 @@ Expected<std::vector<cv::Mat>> SegmentAll(const std::vector<cv::Mat>& frames,
 
 }  // namespace
 
-BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
+BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<FrameFacts>* facts) {
   BackdropSurvey survey;
   const cv::Size size = frames.front().size();
   const std::vector<cv::Point> points = OutlinePoints(size, 2);
@@ -152,6 +152,7 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
   std::vector<std::array<std::uint8_t, 3>> values(points.size() * frame_count);
   std::vector<std::size_t> uniform_in(frame_count, 0);
   std::vector<char> fitted(frame_count, 0);
+  if (facts != nullptr) facts->assign(frame_count, FrameFacts{});
   tbb::parallel_for(std::size_t{0}, frame_count, [&](std::size_t f) {
     const cv::Mat& frame = frames[f];
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -160,6 +161,7 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames) {
     }
     const std::optional<BackdropSurface> surface =
         BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, size.width, size.height));
+    if (facts != nullptr) (*facts)[f].whole_outline = surface;
     if (!surface) return;
     fitted[f] = 1;
     for (const cv::Point& p : points) {
@@ -291,7 +293,8 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
     return std::unexpected(check.error());
   }
   SetSegmentation result;
-  result.survey = SurveyBackdrop(frames);
+  std::vector<FrameFacts> facts;
+  result.survey = SurveyBackdrop(frames, &facts);
   const BackdropSurvey& survey = result.survey;
   const bool still = BackdropWorthLearning(survey, frames.size());
   SegmentOptions run = options;
@@ -329,12 +332,12 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
     // No frame of the empty scene: learn it from graphcut's masks.
     SegmentOptions first = run;
     first.method = "graphcut";
-    Expected<std::vector<cv::Mat>> rough = SegmentAll(frames, first, cv::Mat());
+    Expected<std::vector<cv::Mat>> rough = SegmentAll(frames, first, cv::Mat(), facts);
     if (!rough) return std::unexpected(rough.error());
     *background = LearnBackdrop(frames, *rough, kLearnMarginPx, survey.bgr);
     if (options.method == "auto") run.refine = true;
   }
-  Expected<std::vector<cv::Mat>> masks = SegmentAll(frames, run, *background);
+  Expected<std::vector<cv::Mat>> masks = SegmentAll(frames, run, *background, facts);
   if (!masks) return std::unexpected(masks.error());
   result.masks = std::move(*masks);
   for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));

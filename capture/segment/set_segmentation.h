@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "base/error.h"
+#include "capture/segment/backdrop_surface.h"
 #include "capture/segmenter.h"
 
 namespace revolve::capture {
@@ -32,8 +33,10 @@ struct BackdropSurvey {
   std::string kind;  // "dark" (luma < 80), "light" (> 170), "grey", or "coloured"
 };
 
-// Contract: at least one frame; all CV_8UC3 of one size.
-BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames);
+// Contract: at least one frame; all CV_8UC3 of one size. `facts` (may be null): what it found
+// of each frame, for Segmenter::SegmentWithFacts (resized to the frames' count).
+BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames,
+                              std::vector<FrameFacts>* facts = nullptr);
 
 // Whether a backdrop is worth learning per pixel: a still camera (outline_stillness >= 0.9) over
 // an uneven backdrop (stillness at least 0.1 above outline_uniformity), from 4 frames or more.

@@ -394,6 +394,32 @@ INSTANTIATE_TEST_SUITE_P(
                                        true}),
     [](const auto& p) { return p.param.name; });
 
+// The set's survey fits each frame's outline once, and the graph cut takes that fit: every frame
+// is cut as graphcut cuts it alone (a light backdrop vignetted, cut against its surface, and the
+// exposure flickering: each frame's surface its own).
+TEST(SetSegmentation, EachFrameIsCutAsAloneWithTheSurveysOutlineFit) {
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 6; ++k) {
+    const Frame frame = MakeScene(Scene::kLightShadow, "vase", 60.0 * k);
+    ASSERT_FALSE(frame.image.empty());
+    frames.push_back(WithImperfection(WithImperfection(frame.image, Imperfection::kVignette, k),
+                                      Imperfection::kFlicker, k));
+  }
+  SegmentOptions options;
+  options.method = "auto";
+  const Expected<SetSegmentation> set = SegmentImageSet(frames, options);
+  ASSERT_TRUE(set.has_value()) << set.error().ToString();
+  ASSERT_EQ(set->method, "graphcut");
+  options.method = "graphcut";
+  const Expected<std::unique_ptr<Segmenter>> alone = CreateSegmenter(options);
+  ASSERT_TRUE(alone.has_value());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const Expected<cv::Mat> mask = (*alone)->Segment(frames[k], cv::Mat());
+    ASSERT_TRUE(mask.has_value());
+    EXPECT_EQ(cv::countNonZero(*mask != set->masks[k]), 0) << "frame " << k;
+  }
+}
+
 // The object over black (level 4, noise sigma 3), shifted so it crosses the frame's top edge (a
 // tall vase cropped at the top) or its bottom edge (a light object standing on the frame's
 // bottom): its own colours are then on the frame's edge, above the noise, and must still be object.
