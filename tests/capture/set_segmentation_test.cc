@@ -399,6 +399,7 @@ INSTANTIATE_TEST_SUITE_P(
 // exposure flickering: each frame's surface its own).
 TEST(SetSegmentation, EachFrameIsCutAsAloneWithTheSurveysOutlineFit) {
   std::vector<cv::Mat> frames;
+  frames.reserve(6);
   for (int k = 0; k < 6; ++k) {
     const Frame frame = MakeScene(Scene::kLightShadow, "vase", 60.0 * k);
     ASSERT_FALSE(frame.image.empty());
