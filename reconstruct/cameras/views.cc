@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <numeric>
+#include <vector>
 
 #include <fmt/format.h>
 #include <Eigen/Cholesky>
@@ -35,16 +37,17 @@ struct CarveResult {
 // Views that must see a cell for tolerated misses to count (AutoVolumeOptions).
 constexpr int kMinViewsToOutvote = 8;
 
-// Whether the cell centre `x` survives (see AutoVolumeOptions). `first` names the view tried
-// first and becomes the view that carved `x`: a cell is carved whatever view carves it, and a
-// cell's neighbour is most often carved by the same view, so the views' order changes nothing
-// but the work.
+// Whether the cell centre `x` survives (AutoVolumeOptions). The views are tried in the order
+// `order` (a permutation of them): the answer is the same in any order (a cell falls once more
+// than `tolerated` views miss it, whichever they are), and a view that misses it is moved to the
+// front, so that the next cells, its neighbours, meet the views that miss them first.
 bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
-                  const Eigen::Vector3d& x, int seen_needed, int tolerated, std::size_t* first) {
+                  const Eigen::Vector3d& x, int seen_needed, int tolerated,
+                  std::vector<std::size_t>* order) {
   int seen = 0;
   int misses = 0;
-  for (std::size_t n = 0; n < views.size(); ++n) {
-    const std::size_t v = n == 0 ? *first : (n <= *first ? n - 1 : n);
+  for (std::size_t n = 0; n < order->size(); ++n) {
+    const std::size_t v = (*order)[n];
     const Matrix34d& p = views[v].pixel_from_object;
     const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
     if (!(h.z() > 0.0)) continue;
@@ -52,10 +55,10 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
     const double w = std::floor(h.y() / h.z() + 0.5);
     if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
     ++seen;
-    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0 &&
-        ++misses > tolerated) {
-      *first = v;
-      return false;
+    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
+      std::rotate(order->begin(), order->begin() + static_cast<std::ptrdiff_t>(n),
+                  order->begin() + static_cast<std::ptrdiff_t>(n) + 1);
+      if (++misses > tolerated) return false;
     }
   }
   return seen >= seen_needed && (misses == 0 || seen >= kMinViewsToOutvote);
@@ -85,11 +88,12 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
   ParallelFor(0, layers.size(), [&](std::size_t layer) {
     const int k = static_cast<int>(layer);
     Layer& out = layers[layer];
-    std::size_t first = 0;
+    std::vector<std::size_t> order(views.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
     const auto survives = [&](int i, int j) {
       const Eigen::Vector3d x =
           result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
-      return CellSurvives(masks, views, x, seen_needed, options.tolerated_misses, &first);
+      return CellSurvives(masks, views, x, seen_needed, options.tolerated_misses, &order);
     };
     const auto add = [&](const Eigen::Vector3i& c) {
       if (!out.any) {
