@@ -7,6 +7,7 @@
 #include <fmt/ranges.h>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
 #include "capture/segment/mask_ops.h"
 
 namespace revolve::capture {
@@ -93,7 +94,7 @@ StopStats MeasureStop(const cv::Mat& image, const cv::Mat& mask) {
   stats.area_px = static_cast<int>(m.m00);
   if (stats.area_px == 0) return stats;
   stats.centroid_px = cv::Point2d(m.m10 / m.m00, m.m01 / m.m00);
-  stats.bbox_px = cv::boundingRect(binary);
+  stats.bbox_px = MaskRect(binary);
   cv::Mat bgr = image;
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
   if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);

@@ -12,6 +12,7 @@
 
 #include "base/image_files.h"
 #include "base/image_read.h"
+#include "base/mask_rect.h"
 #include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
@@ -224,7 +225,7 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
   // further; the opening stays within; the margin's background joins the holes that reach the
   // image border to the crop's border, and no component lies outside), on a fraction of it.
   const int margin = 2 * std::max(options.close_px, 0) + 2 * std::max(options.open_px, 0) + 2;
-  cv::Rect roi = cv::boundingRect(mask);
+  cv::Rect roi = MaskRect(mask);
   if (roi.empty()) return mask;
   roi = cv::Rect(roi.x - margin, roi.y - margin, roi.width + 2 * margin, roi.height + 2 * margin) &
         cv::Rect(0, 0, mask.cols, mask.rows);
@@ -242,7 +243,7 @@ cv::Mat SegmentPhoto(const cv::Mat& image, const PhotoSegmentation& options) {
 
 cv::Rect FrameWindow(const cv::Mat& mask, int margin_px) {
   const cv::Rect whole(0, 0, mask.cols, mask.rows);
-  const cv::Rect roi = cv::boundingRect(mask);
+  const cv::Rect roi = MaskRect(mask);
   if (roi.empty()) return whole;
   return cv::Rect(roi.x - margin_px, roi.y - margin_px, roi.width + 2 * margin_px,
                   roi.height + 2 * margin_px) &

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "base/mask_rect.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/io/mesh_io.h"
 #include "reconstruct/meridian/meridian.h"
@@ -26,7 +27,7 @@ constexpr int kMaxResolution = 1024;
 // projections; one pixel more for the texture's float projections.
 cv::Rect HullFrameWindow(const VoxelGrid& grid, const cv::Mat& mask, const View& view) {
   const cv::Rect frame(0, 0, view.width_px, view.height_px);
-  const cv::Rect roi = cv::boundingRect(mask);
+  const cv::Rect roi = MaskRect(mask);
   const std::optional<double> step_px = VoxelStepBoundPx(grid, view);
   if (roi.empty() || !step_px || !(*step_px < 1e6)) return frame;
   const int margin = static_cast<int>(std::ceil(*step_px)) + kTextureReadMarginPx + 2;

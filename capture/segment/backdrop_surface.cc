@@ -8,6 +8,8 @@
 #include <Eigen/Cholesky>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
+
 namespace revolve::capture {
 
 std::vector<cv::Point> RectOutline(const cv::Rect& box) {
@@ -25,7 +27,7 @@ std::vector<cv::Point> RectOutline(const cv::Rect& box) {
 }
 
 cv::Rect RoiBox(cv::Size size, const cv::Mat& roi) {
-  const cv::Rect box = roi.empty() ? cv::Rect() : cv::boundingRect(roi);
+  const cv::Rect box = roi.empty() ? cv::Rect() : MaskRect(roi);
   return box.area() == 0 ? cv::Rect(cv::Point(), size) : box;
 }
 

@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
 #include "capture/segment/backdrop_surface.h"
 #include "capture/segment/colour_cut.h"
 #include "capture/segment/mask_ops.h"
@@ -228,7 +229,7 @@ cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radi
   // (morphology reads the frame's own pixels past a view's edge, as on the whole frame), and the
   // window sums are of whole numbers (scores of 0..255, counts), exact in any order: the same
   // levels as over the whole frame, for the part of the work the object's surroundings take.
-  const cv::Rect object = cv::boundingRect(full_mask);
+  const cv::Rect object = MaskRect(full_mask);
   if (object.empty()) return levels;
   const int margin = 3 * radius_px + 3;
   const cv::Rect part = cv::Rect(object.x - margin, object.y - margin, object.width + 2 * margin,
@@ -353,7 +354,7 @@ cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trima
   if (!has_fg || !has_bg) return fallback;
   // Only the rectangle around the undecided and object labels (with a margin of backdrop for
   // its colour model) goes through the cut; the rest is backdrop for sure.
-  const cv::Rect undecided = cv::boundingRect(labels != cv::GC_BGD);
+  const cv::Rect undecided = MaskRect(cv::Mat(labels != cv::GC_BGD));
   const int margin = std::max(8, std::max(undecided.width, undecided.height) / 8);
   const cv::Rect crop = cv::Rect(undecided.x - margin, undecided.y - margin,
                                  undecided.width + 2 * margin, undecided.height + 2 * margin) &

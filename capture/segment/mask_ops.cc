@@ -6,6 +6,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
+
 namespace revolve::capture {
 namespace {
 
@@ -108,7 +110,7 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv
   // a factor that is a power of two, cv::resize's nearest pixel (the floor of x / factor, exact)
   // is the same for the part as for the whole, so only the part is enlarged; for another, whose
   // 1 / factor rounds, the whole is, as before.
-  const cv::Rect object = cv::boundingRect(mask);
+  const cv::Rect object = MaskRect(mask);
   const cv::Rect part = cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
                         cv::Rect(0, 0, mask.cols, mask.rows);
   cv::Mat full;

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
 #include "capture/segment/backdrop_surface.h"
 #include "capture/segment/graph_cut.h"
 #include "capture/segment/mask_ops.h"
@@ -240,7 +241,7 @@ class PipelineSegmenter final : public Segmenter {
   static cv::Mat DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
                                     const cv::Mat& mask_w, int factor) {
     cv::Mat score = cv::Mat::zeros(bgr.size(), CV_8UC1);
-    const cv::Rect object = cv::boundingRect(mask_w);
+    const cv::Rect object = MaskRect(mask_w);
     if (object.empty()) return score;
     const cv::Rect part =
         cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
@@ -287,7 +288,7 @@ class PipelineSegmenter final : public Segmenter {
     // backdrop: done on that part, the same mask for a fraction of the work.
     const int open_r = radius(options_.open_px);
     const int close_r = radius(options_.close_px);
-    const cv::Rect object = cv::boundingRect(whole);
+    const cv::Rect object = MaskRect(whole);
     const int margin = 2 * open_r + 2 * close_r + 2;
     const cv::Rect part = object.empty()
                               ? cv::Rect(0, 0, whole.cols, whole.rows)

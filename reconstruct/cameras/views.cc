@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "base/mask_rect.h"
 #include "reconstruct/parallel.h"
 
 namespace revolve::reconstruct {
@@ -295,7 +296,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   // The search box: the silhouettes' extents around the centre.
   double radius = 0.0;
   std::vector<cv::Rect> rects(masks.size());
-  ParallelFor(0, masks.size(), [&](std::size_t i) { rects[i] = cv::boundingRect(masks[i]); });
+  ParallelFor(0, masks.size(), [&](std::size_t i) { rects[i] = MaskRect(masks[i]); });
   for (std::size_t i = 0; i < masks.size(); ++i) {
     const cv::Rect& rect = rects[i];
     if (rect.area() == 0) continue;

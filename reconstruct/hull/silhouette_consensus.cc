@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "reconstruct/metrics/reprojection.h"
 #include "reconstruct/parallel.h"
@@ -83,7 +84,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
                  static_cast<int>(std::ceil(VoxelSpanPx(views[i], middle, grid->voxel_mm))));
     // Only the pixels within `radius` of either silhouette can be set in what follows.
     const cv::Rect image(0, 0, others.cols, others.rows);
-    cv::Rect roi = cv::boundingRect(others) | cv::boundingRect(masks[i]);
+    cv::Rect roi = MaskRect(others) | MaskRect(masks[i]);
     roi =
         cv::Rect(roi.x - radius, roi.y - radius, roi.width + 2 * radius, roi.height + 2 * radius) &
         image;

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_rect.h"
 #include "reconstruct/hull/hull_internal.h"
 #include "reconstruct/hull/marching_cubes.h"
 #include "reconstruct/parallel.h"
@@ -190,7 +191,7 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
   ViewData data;
   data.pixel_from_object = view.pixel_from_object;
   cv::min(mask, 1, data.mask01);
-  data.roi = cv::boundingRect(data.mask01);
+  data.roi = MaskRect(data.mask01);
   PackMask(data.mask01, data.roi, &data.packed, &data.packed_words);
   return data;
 }
