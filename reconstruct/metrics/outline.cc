@@ -50,13 +50,15 @@ using Segment = OutlineSegment;
 // the view). Each segment adds its direction to the pixels of each row it crosses (rows v with
 // min(y) <= v < max(y)) from its crossing rightwards; a running sum along the row is the winding
 // number. Built for AVX2 too where the processor has it: there ceil and floor are an instruction
-// each (SSE2's take a dozen), the same values; no fused multiply-add.
+// each (SSE2's take a dozen), the same values; no fused multiply-add. `winding_store` and
+// `on_outline_store`: working memory kept by the caller (any content on entry).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 [[gnu::target_clones("avx2", "default")]]
 #endif
 BoxedSilhouette
 Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
-     const View& view, std::vector<std::int32_t>* winding_store) {
+     const View& view, std::vector<std::int32_t>* winding_store,
+     std::vector<cv::Point>* on_outline_store) {
   BoxedSilhouette result;
   const double u_first = std::max(0.0, std::ceil(lo.x()));
   const double v_first = std::max(0.0, std::ceil(lo.y()));
@@ -72,7 +74,8 @@ Fill(const std::vector<Segment>& segments, const Eigen::Vector2d& lo, const Eige
   const auto stride = static_cast<std::size_t>(width) + 1;
   winding_store->assign(stride * static_cast<std::size_t>(height), 0);
   std::int32_t* winding = winding_store->data();
-  std::vector<cv::Point> on_outline;  // in the box's coordinates
+  std::vector<cv::Point>& on_outline = *on_outline_store;  // in the box's coordinates
+  on_outline.clear();
   const auto on = [&](double x, int v) __attribute__((always_inline)) {
     if (x == std::floor(x) && x >= x0 && x < x0 + width) {
       on_outline.emplace_back(static_cast<int>(x) - x0, v);
@@ -277,7 +280,8 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
         {projected[positive[e.left] ? e.a : e.b], projected[positive[e.left] ? e.b : e.a]});
   }
   std::vector<std::int32_t> winding;
-  return Fill(segments, lo, hi, view, &winding);
+  std::vector<cv::Point> on_outline;
+  return Fill(segments, lo, hi, view, &winding, &on_outline);
 }
 
 OutgoingEdges::OutgoingEdges(const Mesh& mesh) : first_(mesh.vertices.size() + 1, 0) {
@@ -523,7 +527,7 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
     }
   }
   count.outline_edges = static_cast<int>(segments.size());
-  return Fill(segments, lo, hi, view, &work.winding);
+  return Fill(segments, lo, hi, view, &work.winding, &work.on_outline);
 }
 
 namespace {
@@ -659,7 +663,7 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
         segments.push_back(segment);
       }
     }
-    use(batch[b], Fill(segments, lo, hi, view, &work.winding));
+    use(batch[b], Fill(segments, lo, hi, view, &work.winding, &work.on_outline));
   });
 }
 

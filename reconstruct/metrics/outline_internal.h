@@ -142,6 +142,7 @@ struct OutlineScratch {
   std::vector<std::uint32_t> undecided;
   std::vector<OutlineSegment> segments;
   std::vector<std::int32_t> winding;
+  std::vector<cv::Point> on_outline;
 };
 
 // SilhouetteFromEveryEdge's result (the same pixels set, IoUs equal to the bit), with most faces
