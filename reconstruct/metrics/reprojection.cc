@@ -140,16 +140,44 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
   return out;
 }
 
+namespace {
+
+// The pixels non-zero in both of two CV_8UC1 images of one size, and in either: counted in one
+// pass row by row (whole numbers; the loop runs on vectors, built for AVX2 too where the
+// processor has it), with no image made.
+struct MaskCounts {
+  std::int64_t both = 0;
+  std::int64_t either = 0;
+};
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+MaskCounts
+CountMasks(const cv::Mat& a, const cv::Mat& b) {
+  MaskCounts counts;
+  for (int y = 0; y < a.rows; ++y) {
+    const auto* pa = a.ptr<std::uint8_t>(y);
+    const auto* pb = b.ptr<std::uint8_t>(y);
+    std::int32_t row_both = 0;
+    std::int32_t row_either = 0;
+    for (int x = 0; x < a.cols; ++x) {
+      const int in_a = pa[x] != 0 ? 1 : 0;
+      const int in_b = pb[x] != 0 ? 1 : 0;
+      row_both += in_a & in_b;
+      row_either += in_a | in_b;
+    }
+    counts.both += row_both;
+    counts.either += row_either;
+  }
+  return counts;
+}
+
+}  // namespace
+
 double MaskIoU(const cv::Mat& a, const cv::Mat& b) {
-  // Non-zero in both: the smaller value is; in either: the larger (OpenCV's vector loops).
-  cv::Mat both;
-  cv::Mat either;
-  cv::min(a, b, both);
-  cv::max(a, b, either);
-  const int union_px = cv::countNonZero(either);
-  return union_px == 0
-             ? 1.0
-             : static_cast<double>(cv::countNonZero(both)) / static_cast<double>(union_px);
+  const MaskCounts counts = CountMasks(a, b);
+  return counts.either == 0 ? 1.0
+                            : static_cast<double>(counts.both) / static_cast<double>(counts.either);
 }
 
 namespace outline_internal {
@@ -188,10 +216,9 @@ ReprojectionStats SilhouetteReprojectionBy(const Mesh& mesh, const std::vector<V
     if (!outline->box.empty()) {
       const cv::Rect overlap_box = outline->box & cv::Rect(origin, masks[i].size());
       if (!overlap_box.empty()) {
-        cv::Mat overlap;
-        cv::min(outline->pixels(overlap_box - outline->box.tl()), masks[i](overlap_box - origin),
-                overlap);
-        both = cv::countNonZero(overlap);
+        both = CountMasks(outline->pixels(overlap_box - outline->box.tl()),
+                          masks[i](overlap_box - origin))
+                   .both;
       }
       silhouette = cv::countNonZero(outline->pixels);
     }

@@ -25,6 +25,25 @@ Mesh BoxMesh(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
   return mesh;
 }
 
+// Any non-zero value is set, in views into larger images too: the pixel counts of the two masks'
+// intersection and union.
+TEST(MaskIoU, CountsTheNonZeroPixelsOfBothAndEither) {
+  cv::Mat a(61, 203, CV_8UC1);
+  cv::Mat b(61, 203, CV_8UC1);
+  cv::randu(a, cv::Scalar(0), cv::Scalar(4));  // 0..3: a quarter of it zero
+  cv::randu(b, cv::Scalar(0), cv::Scalar(2));  // 0..1: half of it zero
+  for (const cv::Rect part : {cv::Rect(0, 0, 203, 61), cv::Rect(3, 5, 131, 40)}) {
+    cv::Mat both, either;
+    cv::min(a(part), b(part), both);
+    cv::max(a(part), b(part), either);
+    const double expected =
+        static_cast<double>(cv::countNonZero(both)) / static_cast<double>(cv::countNonZero(either));
+    EXPECT_EQ(MaskIoU(a(part), b(part)), expected) << part;
+    EXPECT_GT(expected, 0.3);
+    EXPECT_LT(expected, 0.45);
+  }
+}
+
 TEST(Reprojection, BoxSilhouetteInTheThesisView) {
   const Mesh box = BoxMesh({-20.0f, -20.0f, 10.0f}, {20.0f, 20.0f, 50.0f});
   const View view = ThesisView(200, 100, 0.0);
