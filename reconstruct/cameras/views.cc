@@ -52,8 +52,10 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
     const Matrix34d& p = views[v].pixel_from_object;
     const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
     if (!(h.z() > 0.0)) continue;
-    const double u = std::floor(h.x() / h.z() + 0.5);
-    const double w = std::floor(h.y() / h.z() + 0.5);
+    // An affine view's depth is exactly 1 (the thesis's): its division, exact, is left out.
+    const bool unit_depth = h.z() == 1.0;
+    const double u = std::floor((unit_depth ? h.x() : h.x() / h.z()) + 0.5);
+    const double w = std::floor((unit_depth ? h.y() : h.y() / h.z()) + 0.5);
     if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
     ++seen;
     if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
