@@ -27,7 +27,7 @@ struct SegmentOptions {
   //             distance to the backdrop (the frame outline's median colour) seeds a trimap, and
   //             a graph cut (colour histograms of object and backdrop, capture/segment/colour_cut)
   //             decides the rest at reduced size, the edge placed again at full size
-  //             (capture/segment/graph_cut.h). Slower (~40 ms a 1280x960 frame, one core).
+  //             (capture/segment/graph_cut.h). Slower (~31 ms a 1280x960 frame, one core).
   // Frames of 1280 px or more on their longer side are decided at a reduced size (mask_ops.h
   // WorkFactor) and their edge placed again at full size.
   // auto:       picks one of the above per frame (Segment) or per set (SegmentImageSet, which
