@@ -80,6 +80,23 @@ class SseReader {
     std::lock_guard lock(mutex_);
     return events_;
   }
+  // Waits until the stream's first event, the status it opens with, has come: from then on the
+  // reader is subscribed, and sees every event published (a scan started before that could end
+  // before the reader subscribes, and its end would never come).
+  bool WaitForStatus(std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      {
+        std::lock_guard lock(mutex_);
+        for (const Sse& e : events_) {
+          if (e.event == "status") return true;
+        }
+        if (done_) return false;
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  }
   // Waits until the reader ends (its `until` matched, or the stream closed).
   bool WaitDone(std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
@@ -216,6 +233,7 @@ formats = ["glb", "ply"]
   // Starts a scan over HTTP and waits for its terminal event on the stream; returns its id.
   std::string ScanToEnd(const std::string& body = "{}") {
     SseReader reader(port_, {}, IsTerminalEvent);
+    EXPECT_TRUE(reader.WaitForStatus(30s));
     auto c = Client();
     auto res = c.Post("/api/scans", body, "application/json");
     EXPECT_TRUE(res);
@@ -243,6 +261,7 @@ TEST_F(WebServerTest, ScanOverHttpStreamsEveryStopAndServesItsFiles) {
   EXPECT_EQ(GetJson("/api/live/frame.jpg", 404)["error"]["code"], "not_found");
 
   SseReader reader(port_, {}, IsTerminalEvent);
+  ASSERT_TRUE(reader.WaitForStatus(30s));
   auto c = Client();
   auto started = c.Post("/api/scans", "{}", "application/json");
   ASSERT_TRUE(started);
@@ -335,6 +354,7 @@ TEST_F(WebServerTest, ScanOverHttpStreamsEveryStopAndServesItsFiles) {
 TEST_F(WebServerTest, AbortOverHttpStopsTheScan) {
   StartDaemon(Config("", 36, 0.2));
   SseReader reader(port_, {}, IsTerminalEvent);
+  ASSERT_TRUE(reader.WaitForStatus(30s));
   auto c = Client();
   auto started = c.Post("/api/scans", R"({"recipe": "default"})", "application/json");
   ASSERT_TRUE(started);
@@ -482,6 +502,7 @@ TEST_F(WebServerTest, LoopbackWithTokenOpensGetsAndGuardsPosts) {
   EXPECT_EQ(wrong->status, 401);
   EXPECT_EQ(c.Post("/api/abort", "", "application/json")->status, 401);
   SseReader reader(port_, {}, IsTerminalEvent);
+  ASSERT_TRUE(reader.WaitForStatus(30s));
   auto right = c.Post("/api/scans", {{"Authorization", "Bearer s3cret-token-123"}}, "{}",
                       "application/json");
   EXPECT_EQ(right->status, 202) << right->body;
@@ -574,6 +595,7 @@ TEST_F(WebServerTest, HundredIdleConnectionsLeaveTheStopTimingUnchanged) {
   ASSERT_GT(::send(stalled.get(), "GET /api/status HTTP/1.1\r\nHost: x\r\n", 35, 0), 0);
 
   SseReader reader(port_, {}, IsTerminalEvent);
+  ASSERT_TRUE(reader.WaitForStatus(30s));
   auto c = Client();
   auto started = c.Post("/api/scans", "{}", "application/json");
   ASSERT_TRUE(started);
