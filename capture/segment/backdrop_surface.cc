@@ -53,44 +53,69 @@ std::optional<BackdropSurface> BackdropSurface::FitToOutline(const cv::Mat& bgr,
     terms.push_back(TermsAt((p.x - surface.cx_) / surface.sx_, (p.y - surface.cy_) / surface.sy_));
   }
   std::vector<double> residuals(points.size());
+  // Each point's B, G, R, read once.
+  std::array<std::vector<double>, 3> values;
+  for (std::vector<double>& channel : values) channel.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const cv::Vec3b& colour = bgr.at<cv::Vec3b>(points[i]);
+    for (int c = 0; c < 3; ++c) values[static_cast<std::size_t>(c)][i] = colour[c];
+  }
   using Normal = Eigen::Matrix<double, 6, 6>;
   // The normal matrix's lower triangle, summed point by point in order (each element as the
-  // whole outer product's would be), then mirrored. The first round takes every point: one
-  // matrix for the three channels.
-  const auto add = [](Normal* normal, const Terms& t) {
-    for (int b = 0; b < 6; ++b) {
-      for (int a = b; a < 6; ++a) (*normal)(a, b) += t(a) * t(b);
+  // whole outer product's would be), then mirrored. The 21 sums are kept apart (in registers) as
+  // the points are added. The first round takes every point: one matrix for the three channels.
+  struct Lower {
+    std::array<double, 21> sum{};  // (a, b), a >= b, column by column
+    // Every point of `terms` whose `keep` is true (all of them when it is empty), in order.
+    void AddAll(const std::vector<Terms>& terms, const std::vector<char>& keep) {
+      double s00 = 0, s10 = 0, s20 = 0, s30 = 0, s40 = 0, s50 = 0, s11 = 0, s21 = 0, s31 = 0,
+             s41 = 0, s51 = 0, s22 = 0, s32 = 0, s42 = 0, s52 = 0, s33 = 0, s43 = 0, s53 = 0,
+             s44 = 0, s54 = 0, s55 = 0;
+      for (std::size_t i = 0; i < terms.size(); ++i) {
+        if (!keep.empty() && !keep[i]) continue;
+        const double t0 = terms[i](0), t1 = terms[i](1), t2 = terms[i](2), t3 = terms[i](3),
+                     t4 = terms[i](4), t5 = terms[i](5);
+        s00 += t0 * t0, s10 += t1 * t0, s20 += t2 * t0, s30 += t3 * t0, s40 += t4 * t0;
+        s50 += t5 * t0, s11 += t1 * t1, s21 += t2 * t1, s31 += t3 * t1, s41 += t4 * t1;
+        s51 += t5 * t1, s22 += t2 * t2, s32 += t3 * t2, s42 += t4 * t2, s52 += t5 * t2;
+        s33 += t3 * t3, s43 += t4 * t3, s53 += t5 * t3, s44 += t4 * t4, s54 += t5 * t4;
+        s55 += t5 * t5;
+      }
+      sum = {s00, s10, s20, s30, s40, s50, s11, s21, s31, s41, s51,
+             s22, s32, s42, s52, s33, s43, s53, s44, s54, s55};
+    }
+    Normal Mirrored() const {
+      Normal normal;
+      std::size_t k = 0;
+      for (int b = 0; b < 6; ++b) {
+        for (int a = b; a < 6; ++a) normal(a, b) = normal(b, a) = sum[k++];
+      }
+      return normal;
     }
   };
-  const auto mirrored = [](Normal normal) {
-    normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
-    return normal;
-  };
-  Normal every_point = Normal::Zero();
-  for (const Terms& t : terms) add(&every_point, t);
-  every_point = mirrored(every_point);
+  std::vector<char> kept(points.size(), 1);
+  Lower every_point;
+  every_point.AddAll(terms, {});
+  const Normal every_point_normal = every_point.Mirrored();
   for (int c = 0; c < 3; ++c) {
+    const std::vector<double>& value_of = values[static_cast<std::size_t>(c)];
     Terms fit = Terms::Zero();
     double limit = std::numeric_limits<double>::infinity();
     for (int round = 0; round < 3; ++round) {
-      Normal normal = Normal::Zero();
       Terms rhs = Terms::Zero();
       for (std::size_t i = 0; i < points.size(); ++i) {
-        const double value = bgr.at<cv::Vec3b>(points[i])[c];
-        if (round > 0 && std::abs(value - fit.dot(terms[i])) > limit) continue;
-        if (round > 0) add(&normal, terms[i]);
-        rhs += value * terms[i];
+        const double value = value_of[i];
+        kept[i] = round == 0 || !(std::abs(value - fit.dot(terms[i])) > limit);
+        if (kept[i]) rhs += value * terms[i];
       }
-      if (round == 0) {
-        normal = every_point;
-      } else {
-        normal = mirrored(normal);
-      }
+      Lower lower;
+      if (round > 0) lower.AddAll(terms, kept);
+      const Normal normal = round == 0 ? every_point_normal : lower.Mirrored();
       const Terms next = normal.ldlt().solve(rhs);
       if (!next.allFinite()) return std::nullopt;
       fit = next;
       for (std::size_t i = 0; i < points.size(); ++i) {
-        residuals[i] = std::abs(bgr.at<cv::Vec3b>(points[i])[c] - fit.dot(terms[i]));
+        residuals[i] = std::abs(value_of[i] - fit.dot(terms[i]));
       }
       const auto middle = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
       std::nth_element(residuals.begin(), middle, residuals.end());
