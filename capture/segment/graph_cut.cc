@@ -283,7 +283,8 @@ cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
 }
 
 Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
-                       const cv::Mat& roi, const GraphCutOptions& options) {
+                       const cv::Mat& roi, const GraphCutOptions& options,
+                       const cv::Mat& noise_score) {
   Trimap trimap;
   cv::Mat& labels = trimap.labels;
   labels = cv::Mat(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
@@ -295,7 +296,9 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
     border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
   }
   const bool hysteresis = UsesNoiseHysteresis(levels);
-  const cv::Mat above_noise = hysteresis ? cv::Mat(NoiseScore(score) > levels.noise) : cv::Mat();
+  const cv::Mat above_noise =
+      hysteresis ? cv::Mat((noise_score.empty() ? NoiseScore(score) : noise_score) > levels.noise)
+                 : cv::Mat();
   // With the hysteresis: the colours of what rises above the noise on the frame's edge (a
   // stand's foot, a cloth) are never object for sure nor brought in; the object's own body where
   // it crosses the frame's edge (a vase cropped at the top, an object on the bottom edge) does not

@@ -73,8 +73,10 @@ struct Trimap {
 // 16 levels a channel on a square-root scale, one level of slack): a stand or a cloth that touches
 // the frame's edge, and a fold of it seen between an object's parts, are not brought in; the
 // object's own shadows are. `roi` (CV_8UC1, may be empty = everything): pixels outside are GC_BGD.
+// `noise_score`: NoiseScore(score) when the caller has it already (empty: made here).
 Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLevels& levels,
-                       const cv::Mat& roi, const GraphCutOptions& options);
+                       const cv::Mat& roi, const GraphCutOptions& options,
+                       const cv::Mat& noise_score = cv::Mat());
 
 // The refined mask (CV_8UC1, 0/255) of `bgr` (CV_8UC3) from `trimap` (TrimapFromScore): the colour
 // cut (CutByColour) on the reduced copy, the result scaled up, and in a band of the scale's width

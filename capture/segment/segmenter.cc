@@ -218,13 +218,14 @@ class PipelineSegmenter final : public Segmenter {
     if (!split.two_classes || split.high_mean - split.low_mean < options_.min_contrast) {
       return cv::Mat::zeros(bgr.size(), CV_8UC1);
     }
+    const cv::Mat noise_score = NoiseScore(scored.score);
     scored.levels = {static_cast<double>(split.threshold), split.low_mean,
-                     BackdropNoiseCeiling(NoiseScore(scored.score), roi_w)};
+                     BackdropNoiseCeiling(noise_score, roi_w)};
     GraphCutOptions cut;
     cut.max_side_px = options_.refine_max_side_px;
     const cv::Mat cut_w = RefineWithGraphCut(
         colours_w, scored.score,
-        TrimapFromScore(colours_w, scored.score, scored.levels, roi_w, cut), cut);
+        TrimapFromScore(colours_w, scored.score, scored.levels, roi_w, cut, noise_score), cut);
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
     cv::Mat mask =
