@@ -103,34 +103,43 @@ cv::Mat Reduced(const cv::Mat& image, int factor) {
   return out;
 }
 
-cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels) {
-  if (factor <= 1 && levels.empty()) return mask;
-  // Only around the object (its rectangle and a pixel more, where its edge is): the gradient of
-  // a view reads the mask's own pixels past the view's edge. Elsewhere the enlarged mask is 0: for
-  // a factor that is a power of two, cv::resize's nearest pixel (the floor of x / factor, exact)
-  // is the same for the part as for the whole, so only the part is enlarged; for another, whose
-  // 1 / factor rounds, the whole is, as before.
+MaskEdge EdgeOf(const cv::Mat& mask) {
+  MaskEdge found;
   const cv::Rect object = MaskRect(mask);
-  const cv::Rect part = cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
-                        cv::Rect(0, 0, mask.cols, mask.rows);
+  if (object.empty()) return found;
+  found.part = cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
+               cv::Rect(0, 0, mask.cols, mask.rows);
+  cv::morphologyEx(mask(found.part), found.edge, cv::MORPH_GRADIENT, cv::Mat());
+  return found;
+}
+
+cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels,
+                 const MaskEdge* edge) {
+  if (factor <= 1 && levels.empty()) return mask;
+  // Only around the object (its rectangle and a pixel more, where its edge is). Elsewhere the
+  // enlarged mask is 0: for a factor that is a power of two, cv::resize's nearest pixel (the
+  // floor of x / factor, exact) is the same for the part as for the whole, so only the part is
+  // enlarged; for another, whose 1 / factor rounds, the whole is, as before.
+  const MaskEdge found = edge != nullptr ? MaskEdge{} : EdgeOf(mask);
+  const MaskEdge& at = edge != nullptr ? *edge : found;
+  const cv::Rect& part = at.part;
+  const cv::Mat& gradient = at.edge;
   cv::Mat full;
   if (factor >= 1 && std::has_single_bit(static_cast<unsigned>(factor)) &&
       score.size() == cv::Size(mask.cols * factor, mask.rows * factor)) {
     full = cv::Mat::zeros(score.size(), CV_8UC1);
-    if (object.empty()) return full;
+    if (part.empty()) return full;
     const cv::Rect part_full(part.x * factor, part.y * factor, part.width * factor,
                              part.height * factor);
     cv::Mat enlarged = full(part_full);
     cv::resize(mask(part), enlarged, part_full.size(), 0.0, 0.0, cv::INTER_NEAREST);
   } else {
     cv::resize(mask, full, score.size(), 0.0, 0.0, cv::INTER_NEAREST);
-    if (object.empty()) return full;
+    if (part.empty()) return full;
   }
-  cv::Mat edge;
-  cv::morphologyEx(mask(part), edge, cv::MORPH_GRADIENT, cv::Mat());
   const bool one_level = levels.total() == 1;
   for (int y = part.y; y < part.y + part.height; ++y) {
-    const auto* e = edge.ptr<std::uint8_t>(y - part.y) - part.x;
+    const auto* e = gradient.ptr<std::uint8_t>(y - part.y) - part.x;
     const float* l = one_level ? levels.ptr<float>(0) : levels.ptr<float>(y);
     for (int x = part.x; x < part.x + part.width; ++x) {
       if (!e[x]) continue;

@@ -41,12 +41,24 @@ int WorkFactor(cv::Size size);
 // Contract: factor divides both sides.
 cv::Mat Reduced(const cv::Mat& image, int factor);
 
+// Where Enlarged places the edge again: `part`, the rectangle of the mask's set pixels and a
+// pixel more (within the mask), and `edge`, the mask's morphological gradient there (non-zero
+// where a 3x3 neighbourhood holds both values; the gradient of a view reads the mask's own pixels
+// past the view's edge). Both empty when no pixel is set.
+struct MaskEdge {
+  cv::Rect part;
+  cv::Mat edge;
+};
+MaskEdge EdgeOf(const cv::Mat& mask);
+
 // A mask of the work size (CV_8UC1, 0/255) enlarged by `factor` to the full size, the edge
 // placed again at full size: every full-size pixel under a work pixel on the mask's edge (a 3x3
 // neighbourhood that holds both values) is object when its `score` (CV_8UC1, full size) is at
 // least the work pixel's level in `levels` (CV_32FC1 of the work size, or 1x1 for one level
 // everywhere); a negative level keeps the enlarged value. Away from the edge, the work mask
-// holds: specks it dropped and holes it filled stay so.
-cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels);
+// holds: specks it dropped and holes it filled stay so. `edge` (may be null): EdgeOf(mask), when
+// the caller has it.
+cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels,
+                 const MaskEdge* edge = nullptr);
 
 }  // namespace revolve::capture

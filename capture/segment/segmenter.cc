@@ -228,27 +228,24 @@ class PipelineSegmenter final : public Segmenter {
         TrimapFromScore(colours_w, scored.score, scored.levels, roi_w, cut, noise_score), cut);
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
+    const MaskEdge edge = EdgeOf(mask_w);
     cv::Mat mask =
-        Enlarged(mask_w, factor, DistanceAroundEdge(bgr, backdrop, shadows, mask_w, factor),
-                 EdgeLevels(mask_w, scored.score, 1));
+        Enlarged(mask_w, factor, DistanceAroundEdge(bgr, backdrop, shadows, edge, factor),
+                 EdgeLevels(mask_w, scored.score, 1), &edge);
     if (!roi.empty()) mask &= roi;
     return mask;
   }
 
   // BackdropDistance(bgr, backdrop, shadows) where Enlarged(mask_w, factor, ...) reads it: the
-  // full-size pixels of the work-size mask's edge (its morphological gradient, found on the same
-  // part of it as Enlarged finds it; zero elsewhere; an empty mask has no edge). The distance is
-  // a pixel's own: the same values as over the whole frame.
+  // full-size pixels of the work-size mask's edge (`edge`: EdgeOf(mask_w); zero elsewhere; an
+  // empty mask has no edge). The distance is a pixel's own: the same values as over the whole
+  // frame.
   static cv::Mat DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
-                                    const cv::Mat& mask_w, int factor) {
+                                    const MaskEdge& mask_edge, int factor) {
     cv::Mat score = cv::Mat::zeros(bgr.size(), CV_8UC1);
-    const cv::Rect object = MaskRect(mask_w);
-    if (object.empty()) return score;
-    const cv::Rect part =
-        cv::Rect(object.x - 1, object.y - 1, object.width + 2, object.height + 2) &
-        cv::Rect(0, 0, mask_w.cols, mask_w.rows);
-    cv::Mat edge;
-    cv::morphologyEx(mask_w(part), edge, cv::MORPH_GRADIENT, cv::Mat());
+    if (mask_edge.part.empty()) return score;
+    const cv::Rect& part = mask_edge.part;
+    const cv::Mat& edge = mask_edge.edge;
     const bool per_pixel = backdrop.size() == bgr.size();
     for (int y = 0; y < edge.rows; ++y) {
       const std::uint8_t* e = edge.ptr<std::uint8_t>(y);
