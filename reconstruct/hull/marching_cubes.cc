@@ -423,11 +423,12 @@ Slab MarchSlab(const BitVolume& padded, const CaseTable& table, int z0, int z1,
   Slab out;
   const Eigen::Vector3i& n = padded.dims();
   // A new vertex on the edge from padded sample (x, y, z) one step along `axis`.
-  auto make_vertex = [&](int x, int y, int z, int axis) {
+  // `first_inside`: padded sample (x, y, z) is set.
+  auto make_vertex = [&](int x, int y, int z, int axis, bool first_inside) {
     // In field coordinates (padded - 1) the edge runs from (x, y, z) - 1 one step along `axis`
     // (u); `in` is 1 when its second end, not its first, is the inside sample.
     const int ux = axis == 0 ? 1 : 0, uy = axis == 1 ? 1 : 0, uz = axis == 2 ? 1 : 0;
-    const int in = padded.Get(x, y, z) ? 0 : 1;
+    const int in = first_inside ? 0 : 1;
     const int out_end = 1 - in;
     GridEdge& edge = out.edges.emplace_back();
     edge.inside = Eigen::Vector3i(x - 1 + in * ux, y - 1 + in * uy, z - 1 + in * uz);
@@ -452,12 +453,13 @@ Slab MarchSlab(const BitVolume& padded, const CaseTable& table, int z0, int z1,
                                       padded.Row(py, pz + 1), padded.Row(py + 1, pz + 1)};
       for (int w = 0; w < words; ++w) {
         auto word_of = [&](int r, int ww) { return ww < words ? rows[r][ww] : std::uint64_t{0}; };
-        const std::uint64_t any = word_of(0, w) | word_of(1, w) | word_of(2, w) | word_of(3, w);
-        const std::uint64_t all = word_of(0, w) & word_of(1, w) & word_of(2, w) & word_of(3, w);
-        const std::uint64_t any_next =
-            word_of(0, w + 1) | word_of(1, w + 1) | word_of(2, w + 1) | word_of(3, w + 1);
-        const std::uint64_t all_next =
-            word_of(0, w + 1) & word_of(1, w + 1) & word_of(2, w + 1) & word_of(3, w + 1);
+        const std::uint64_t here[4] = {word_of(0, w), word_of(1, w), word_of(2, w), word_of(3, w)};
+        const std::uint64_t next[4] = {word_of(0, w + 1), word_of(1, w + 1), word_of(2, w + 1),
+                                       word_of(3, w + 1)};
+        const std::uint64_t any = here[0] | here[1] | here[2] | here[3];
+        const std::uint64_t all = here[0] & here[1] & here[2] & here[3];
+        const std::uint64_t any_next = next[0] | next[1] | next[2] | next[3];
+        const std::uint64_t all_next = next[0] & next[1] & next[2] & next[3];
         const std::uint64_t any_cell = any | (any >> 1) | (any_next << 63);
         const std::uint64_t all_cell = all & ((all >> 1) | (all_next << 63));
         std::uint64_t active = any_cell & ~all_cell;
@@ -468,11 +470,12 @@ Slab MarchSlab(const BitVolume& padded, const CaseTable& table, int z0, int z1,
           if (px > last_cell) {
             break;
           }
+          // Corner c = x + 2 y + 4 z is bit px + (c & 1) of row c >> 1: each row gives two
+          // corners, its bits `bit` and `bit + 1` (the next word's first when bit is 63).
           int config = 0;
-          for (int c = 0; c < 8; ++c) {
-            const int x = px + (c & 1);
-            const std::uint64_t* row = rows[((c >> 1) & 1) | (((c >> 2) & 1) << 1)];
-            config |= static_cast<int>((row[x >> 6] >> (x & 63)) & 1u) << c;
+          for (int r = 0; r < 4; ++r) {
+            const std::uint64_t pair = (here[r] >> bit) | ((next[r] << 1) << (63 - bit));
+            config |= static_cast<int>(pair & 3u) << (2 * r);
           }
           const auto& tris = table.triangles[config];
           int local[12];
@@ -500,7 +503,7 @@ Slab MarchSlab(const BitVolume& padded, const CaseTable& table, int z0, int z1,
             if (*slot == -1) {
               *slot = lo_foreign && !hi && edge.axis != 2
                           ? kForeign - static_cast<int>(cell * 2 + edge.axis)
-                          : make_vertex(x, y, z, edge.axis);
+                          : make_vertex(x, y, z, edge.axis, ((config >> c) & 1) != 0);
               set->push_back(cell);
             }
             local[e] = *slot;
