@@ -108,15 +108,41 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
       }
     };
     // Only the survivors' range is wanted: each row's first and last survivor, found from its
-    // two ends; the cells between them are not tested.
-    for (int j = 0; j < result.dims.y(); ++j) {
+    // two ends; the cells between them are not tested. Whether row j holds a survivor at all
+    // (whole row searched) is needed only from the ends of the layer inwards, up to the first
+    // row that does; between those two rows, the rows can only widen the layer's range along x,
+    // and only their cells outside it are tested.
+    const int nx = result.dims.x();
+    const int ny = result.dims.y();
+    // Row j's first and last survivor (false: none).
+    const auto whole_row = [&](int j) {
       int i_first = 0;
-      while (i_first < result.dims.x() && !survives(i_first, j)) ++i_first;
-      if (i_first == result.dims.x()) continue;
-      int i_last = result.dims.x() - 1;
+      while (i_first < nx && !survives(i_first, j)) ++i_first;
+      if (i_first == nx) return false;
+      int i_last = nx - 1;
       while (i_last > i_first && !survives(i_last, j)) --i_last;
       add(Eigen::Vector3i(i_first, j, k));
       add(Eigen::Vector3i(i_last, j, k));
+      return true;
+    };
+    int j_low = 0;
+    while (j_low < ny && !whole_row(j_low)) ++j_low;
+    if (j_low == ny) return;
+    int j_high = ny - 1;
+    while (j_high > j_low && !whole_row(j_high)) --j_high;
+    for (int j = j_low + 1; j < j_high; ++j) {
+      for (int i = 0; i < out.lo.x(); ++i) {
+        if (survives(i, j)) {
+          add(Eigen::Vector3i(i, j, k));
+          break;
+        }
+      }
+      for (int i = nx - 1; i > out.hi.x(); --i) {
+        if (survives(i, j)) {
+          add(Eigen::Vector3i(i, j, k));
+          break;
+        }
+      }
     }
   });
   for (const Layer& layer : layers) {

@@ -238,5 +238,30 @@ TEST(CarvingVolume, OneMaskMissingAPartDoesNotCutTheBox) {
   EXPECT_GT(strict->box.min.z(), sphere.centre_mm.z() - 0.5 * sphere.radius_mm);
 }
 
+// A small sphere beside a large one, level with its middle: the layers through it have their
+// widest rows in the middle, not at their ends. The box reaches out to the small sphere (the
+// search tests every row's cells outside the range found so far), and not beyond.
+TEST(CarvingVolume, ReachesAPartThatWidensTheMiddleRows) {
+  const Rig rig = testing::StationRig(450.0, 10.0, 40.0);
+  const testing::Sphere large{Eigen::Vector3d(0.0, 0.0, 45.0), 25.0};
+  const testing::Sphere small{Eigen::Vector3d(36.0, 0.0, 45.0), 8.0};
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  for (int k = 0; k < 12; ++k) {
+    masks.push_back(testing::SphereMask(rig, 30.0 * k, std::vector<testing::Sphere>{large, small}));
+    views.push_back(testing::ViewOf(rig, 30.0 * k));
+  }
+  const Expected<AutoVolume> volume = CarvingVolumeFromSilhouettes(masks, views);
+  ASSERT_TRUE(volume.has_value()) << volume.error().ToString();
+  EXPECT_GE(volume->box.max.x(), small.centre_mm.x() + small.radius_mm);
+  EXPECT_LE(volume->box.max.x(), small.centre_mm.x() + 2.0 * small.radius_mm);
+  EXPECT_LE(volume->box.min.x(), large.centre_mm.x() - large.radius_mm);
+  EXPECT_GE(volume->box.min.x(), large.centre_mm.x() - 1.25 * large.radius_mm);
+  for (const double y : {volume->box.min.y(), volume->box.max.y()}) {
+    EXPECT_GE(std::abs(y), large.radius_mm);
+    EXPECT_LE(std::abs(y), 1.25 * large.radius_mm);
+  }
+}
+
 }  // namespace
 }  // namespace revolve::reconstruct
