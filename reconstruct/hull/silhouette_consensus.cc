@@ -77,19 +77,30 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
     const int tolerated = masks.size() - 1 >= kMinViewsToOutvote ? options.tolerated_misses : 0;
     const Mesh surface =
         hulls.Without(i, /*keep_views=*/false, tolerated).ExtractSurface(midpoints);
-    const cv::Mat others = RenderSilhouette(surface, views[i], /*closed=*/true);
+    // Drawn within its own rectangle: an image of the view's size is neither cleared nor read.
+    const BoxedSilhouette others = RenderSilhouetteInBox(surface, views[i], /*closed=*/true);
     // The midpoint surface lies within a voxel of the hull's: dilated by a voxel's span.
     const int radius =
         std::max(options.tolerance_px,
                  static_cast<int>(std::ceil(VoxelSpanPx(views[i], middle, grid->voxel_mm))));
     // Only the pixels within `radius` of either silhouette can be set in what follows.
-    const cv::Rect image(0, 0, others.cols, others.rows);
-    cv::Rect roi = MaskRect(others) | MaskRect(masks[i]);
+    const cv::Rect image(0, 0, masks[i].cols, masks[i].rows);
+    cv::Rect others_rect;
+    if (!others.box.empty()) {
+      others_rect = MaskRect(others.pixels);
+      if (!others_rect.empty()) others_rect += others.box.tl();
+    }
+    cv::Rect roi = others_rect | MaskRect(masks[i]);
     roi =
         cv::Rect(roi.x - radius, roi.y - radius, roi.width + 2 * radius, roi.height + 2 * radius) &
         image;
-    result.agreement[i] = MaskIoU(masks[i](roi), others(roi));
-    result.masks[i] = CutToDilated(masks[i](roi), others(roi), radius);
+    // The other views' silhouette over the roi (zero where it was not drawn).
+    cv::Mat others_roi(roi.size(), CV_8UC1, cv::Scalar(0));
+    if (const cv::Rect drawn = others.box & roi; !drawn.empty()) {
+      others.pixels(drawn - others.box.tl()).copyTo(others_roi(drawn - roi.tl()));
+    }
+    result.agreement[i] = MaskIoU(masks[i](roi), others_roi);
+    result.masks[i] = CutToDilated(masks[i](roi), others_roi, radius);
     result.cut_roi[i] = roi;
     result.size[i] = masks[i].size();
   });

@@ -65,13 +65,6 @@ class OutgoingEdges {
 // consistently oriented): SharedEdges(mesh) empty.
 std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh);
 
-// A silhouette within its bounding rectangle: `pixels` (CV_8UC1 0/255, the rectangle's size)
-// are the image's pixels in `box`; none outside is set. An empty box: no pixel set.
-struct BoxedSilhouette {
-  cv::Rect box;
-  cv::Mat pixels;
-};
-
 // The silhouette of a closed mesh from its outline, every edge looked at: the pixels whose
 // centre the outline winds around (its edges between a face of positive projected area and one
 // of another, directed as the positive face runs them: the boundary of the positive faces'

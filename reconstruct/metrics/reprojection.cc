@@ -79,20 +79,43 @@ void ClipRun(const Edge& edge, double sign, int v, int* lo, int* hi) {
 
 }  // namespace
 
-cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
-  cv::Mat out(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
+BoxedSilhouette RenderSilhouetteInBox(const Mesh& mesh, const View& view, bool closed) {
+  BoxedSilhouette result;
   std::vector<Eigen::Vector2d> projected(mesh.vertices.size());
   std::vector<std::uint8_t> visible(mesh.vertices.size(), 0);
   bool all_visible = true;
+  // The rectangle of the visible vertices' finite projections: every face drawn lies within it
+  // (a face with a coordinate not finite has no finite area and is not drawn).
+  double x_min = std::numeric_limits<double>::infinity(), y_min = x_min;
+  double x_max = -x_min, y_max = -x_min;
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     Eigen::Vector2d pixel;
     if (view.Project(mesh.vertices[i].cast<double>(), &pixel)) {
       projected[i] = pixel;
       visible[i] = 1;
+      if (std::isfinite(pixel.x()) && std::isfinite(pixel.y())) {
+        x_min = std::min(x_min, pixel.x());
+        x_max = std::max(x_max, pixel.x());
+        y_min = std::min(y_min, pixel.y());
+        y_max = std::max(y_max, pixel.y());
+      }
     } else {
       all_visible = false;
     }
   }
+  // The pixel centres within it, in the image (clamped before the conversion to int).
+  const double u_first = std::max(0.0, std::ceil(x_min));
+  const double u_last = std::min(view.width_px - 1.0, std::floor(x_max));
+  const double v_first = std::max(0.0, std::ceil(y_min));
+  const double v_last = std::min(view.height_px - 1.0, std::floor(y_max));
+  if (!(u_first <= u_last && v_first <= v_last)) return result;
+  const int box_u0 = static_cast<int>(u_first);
+  const int box_v0 = static_cast<int>(v_first);
+  const int box_u1 = static_cast<int>(u_last);
+  const int box_v1 = static_cast<int>(v_last);
+  result.box = cv::Rect(box_u0, box_v0, box_u1 - box_u0 + 1, box_v1 - box_v0 + 1);
+  result.pixels = cv::Mat(result.box.size(), CV_8UC1, cv::Scalar(0));
+  cv::Mat& out = result.pixels;
   const bool one_winding = closed && all_visible;
   // Per face and row of its bounding rectangle, the pixel centres inside all three edges (edges
   // inclusive). Each edge's test, sign * (e_x (v - p_y) - e_y (u - p_x)) >= 0, is monotone in u
@@ -106,12 +129,10 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
     const double x2 = projected[face[2]].x(), y2 = projected[face[2]].y();
     const double area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
     if (area == 0.0 || !std::isfinite(area) || (one_winding && area < 0.0)) continue;
-    const int u0 = std::max(0, static_cast<int>(std::ceil(std::min(std::min(x0, x1), x2))));
-    const int u1 =
-        std::min(view.width_px - 1, static_cast<int>(std::floor(std::max(std::max(x0, x1), x2))));
-    const int v0 = std::max(0, static_cast<int>(std::ceil(std::min(std::min(y0, y1), y2))));
-    const int v1 =
-        std::min(view.height_px - 1, static_cast<int>(std::floor(std::max(std::max(y0, y1), y2))));
+    const int u0 = std::max(box_u0, static_cast<int>(std::ceil(std::min(std::min(x0, x1), x2))));
+    const int u1 = std::min(box_u1, static_cast<int>(std::floor(std::max(std::max(x0, x1), x2))));
+    const int v0 = std::max(box_v0, static_cast<int>(std::ceil(std::min(std::min(y0, y1), y2))));
+    const int v1 = std::min(box_v1, static_cast<int>(std::floor(std::max(std::max(y0, y1), y2))));
     if (u0 > u1 || v0 > v1) continue;
     const double sign = area > 0.0 ? 1.0 : -1.0;
     // Edges p1 - p0 from p0, p2 - p1 from p1, p0 - p2 from p2.
@@ -121,7 +142,7 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
       // Every pixel tested, no branch on the outcome (a few pixels a row: mispredicted
       // branches cost more than the tests they would skip); the pixels are 0 or 255.
       for (int v = v0; v <= v1; ++v) {
-        auto* row = out.ptr<std::uint8_t>(v);
+        auto* row = out.ptr<std::uint8_t>(v - box_v0) - box_u0;
         for (int u = u0; u <= u1; ++u) {
           const int inside = static_cast<int>(Inside(edges[0], sign, u, v)) &
                              static_cast<int>(Inside(edges[1], sign, u, v)) &
@@ -134,9 +155,17 @@ cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
     for (int v = v0; v <= v1; ++v) {
       int lo = u0, hi = u1;
       for (int e = 0; e < 3 && lo <= hi; ++e) ClipRun(edges[e], sign, v, &lo, &hi);
-      if (lo <= hi) std::memset(out.ptr<std::uint8_t>(v) + lo, 255, hi - lo + 1);
+      if (lo <= hi)
+        std::memset(out.ptr<std::uint8_t>(v - box_v0) + (lo - box_u0), 255, hi - lo + 1);
     }
   }
+  return result;
+}
+
+cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed) {
+  const BoxedSilhouette boxed = RenderSilhouetteInBox(mesh, view, closed);
+  cv::Mat out(view.height_px, view.width_px, CV_8UC1, cv::Scalar(0));
+  if (!boxed.box.empty()) boxed.pixels.copyTo(out(boxed.box));
   return out;
 }
 

@@ -26,6 +26,18 @@ namespace revolve::reconstruct {
 // winding. When some vertex is not in front of the camera, every face is drawn.
 cv::Mat RenderSilhouette(const Mesh& mesh, const View& view, bool closed = false);
 
+// A silhouette within a rectangle of its image: `pixels` (CV_8UC1 0/255, the rectangle's size)
+// are the image's pixels in `box`; none outside is set. An empty box: no pixel set.
+struct BoxedSilhouette {
+  cv::Rect box;
+  cv::Mat pixels;
+};
+
+// RenderSilhouette's pixels within the rectangle of the pixel centres its drawn vertices reach
+// (clipped to the view's image; empty when none): the same pixels, without an image of the
+// view's size to clear.
+BoxedSilhouette RenderSilhouetteInBox(const Mesh& mesh, const View& view, bool closed = false);
+
 // |a and b| / |a or b| over non-zero pixels of two CV_8UC1 images of one size; 1 when both are
 // empty. Precondition: same size and type.
 double MaskIoU(const cv::Mat& a, const cv::Mat& b);

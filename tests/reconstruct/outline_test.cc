@@ -20,7 +20,6 @@
 namespace revolve::reconstruct {
 namespace {
 
-using outline_internal::BoxedSilhouette;
 using outline_internal::OutlineCounts;
 using outline_internal::OutlineIndex;
 

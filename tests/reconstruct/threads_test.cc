@@ -489,6 +489,12 @@ TEST(Threads, SilhouetteRunsEqualTestingEveryPixel) {
       const cv::Mat got = RenderSilhouette(mesh, view);
       ASSERT_GT(cv::countNonZero(expected), 0);
       EXPECT_EQ(cv::countNonZero(expected != got), 0);
+      // Drawn in its box alone: within the image, every pixel of the silhouette in it.
+      const BoxedSilhouette boxed = RenderSilhouetteInBox(mesh, view);
+      ASSERT_EQ(boxed.box & cv::Rect(0, 0, view.width_px, view.height_px), boxed.box);
+      ASSERT_EQ(boxed.pixels.size(), boxed.box.size());
+      EXPECT_EQ(cv::countNonZero(expected(boxed.box) != boxed.pixels), 0);
+      EXPECT_EQ(cv::countNonZero(expected(boxed.box)), cv::countNonZero(expected));
     }
   }
 }
