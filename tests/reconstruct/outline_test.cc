@@ -118,6 +118,70 @@ TEST(Outline, HomogeneousIsEigensToTheBit) {
   }
 }
 
+// The index's face planes, altitudes and shared axes (computed on vectors, from rows of corners)
+// are Eigen's expressions to the bit: on hull surfaces, random faces of every scale, and faces
+// with repeated corners, in a line, or flat along an axis.
+TEST(Outline, FacePlanesAreEigensToTheBit) {
+  Mesh mesh;
+  for (const Mesh& hull : HullMeshes()) {
+    const auto base = static_cast<int>(mesh.vertices.size());
+    mesh.vertices.insert(mesh.vertices.end(), hull.vertices.begin(), hull.vertices.end());
+    for (const Eigen::Vector3i& f : hull.faces)
+      mesh.faces.push_back(f + Eigen::Vector3i::Constant(base));
+  }
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  for (int i = 0; i < 30000; ++i) {
+    const float scale = std::pow(10.0f, static_cast<float>(i % 9) - 3.0f);
+    const auto corner = [&] {
+      return Eigen::Vector3f(scale * unit(random), scale * unit(random), scale * unit(random));
+    };
+    const Eigen::Vector3f a = corner();
+    Eigen::Vector3f b = corner();
+    Eigen::Vector3f c = corner();
+    if (i % 7 == 1) b = a;                   // repeated corner
+    if (i % 7 == 2) c = a + 2.0f * (b - a);  // in a line
+    if (i % 7 == 3) b.z() = c.z() = a.z();   // flat along z
+    if (i % 7 == 4) b = c = a;               // a point
+    const auto first = static_cast<int>(mesh.vertices.size());
+    mesh.vertices.insert(mesh.vertices.end(), {a, b, c});
+    mesh.faces.emplace_back(first, first + 1, first + 2);
+  }
+  const OutlineIndex index(mesh);
+  ASSERT_TRUE(index.finite());
+  ASSERT_EQ(index.normal_x().size(), mesh.faces.size());
+  for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+    const Eigen::Vector3i& f = mesh.faces[i];
+    std::uint8_t shared = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const float x = mesh.vertices[f[0]][axis];
+      if (mesh.vertices[f[1]][axis] == x && mesh.vertices[f[2]][axis] == x) {
+        shared |= static_cast<std::uint8_t>(1u << axis);
+      }
+    }
+    const Eigen::Vector3d a = mesh.vertices[f[0]].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices[f[1]].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices[f[2]].cast<double>();
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const double n_norm = n.norm();
+    const double longest =
+        std::sqrt(std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+    float expected[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    if (n_norm > 0.0 && longest > 0.0) {
+      const Eigen::Vector3d u = n / n_norm;
+      expected[0] = static_cast<float>(u.x());
+      expected[1] = static_cast<float>(u.y());
+      expected[2] = static_cast<float>(u.z());
+      expected[3] = static_cast<float>(u.dot(a));
+      expected[4] = static_cast<float>(n_norm / longest);
+    }
+    const float got[5] = {index.normal_x()[i], index.normal_y()[i], index.normal_z()[i],
+                          index.offset()[i], index.height()[i]};
+    ASSERT_EQ(std::memcmp(expected, got, sizeof(got)), 0) << "face " << i;
+    ASSERT_EQ(index.shared_axes()[i], shared) << "face " << i;
+  }
+}
+
 TEST(Outline, PlanesGiveTheSilhouetteOfEveryEdgeOnHulls) {
   const std::vector<View> views = Views();
   const std::vector<Mesh> meshes = HullMeshes();
