@@ -363,66 +363,69 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
   return Fill(segments, lo, hi, view, &winding, &on_outline);
 }
 
-OutgoingEdges::OutgoingEdges(const Mesh& mesh) : first_(mesh.vertices.size() + 1, 0) {
-  const std::size_t n = mesh.vertices.size();
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    for (int e = 0; e < 3; ++e) ++first_[static_cast<std::size_t>(f[e]) + 1];
-  }
-  for (std::size_t v = 0; v < n; ++v) first_[v + 1] += first_[v];
-  out_.resize(first_[n]);
-  std::vector<std::uint32_t> next(first_.begin(), first_.end() - 1);
-  for (std::size_t face = 0; face < mesh.faces.size(); ++face) {
-    const Eigen::Vector3i& f = mesh.faces[face];
-    for (int e = 0; e < 3; ++e) {
-      out_[next[static_cast<std::size_t>(f[e])]++] = {f[(e + 1) % 3], static_cast<int>(face)};
-    }
-  }
-}
-
-int OutgoingEdges::Uses(int from, int to) const {
-  int uses = 0;
-  for (std::uint32_t k = first_[static_cast<std::size_t>(from)];
-       k < first_[static_cast<std::size_t>(from) + 1]; ++k) {
-    uses += out_[k].first == to;
-  }
-  return uses;
-}
-
-int OutgoingEdges::FaceOf(int from, int to) const {
-  int found = -1;
-  for (std::uint32_t k = first_[static_cast<std::size_t>(from)];
-       k < first_[static_cast<std::size_t>(from) + 1]; ++k) {
-    if (out_[k].first != to) continue;
-    if (found >= 0) return -2;
-    found = out_[k].second;
-  }
-  return found;
-}
-
 std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   const std::size_t face_count = mesh.faces.size();
-  const OutgoingEdges outgoing(mesh);
-  const auto face_of = [&](int from, int to) { return outgoing.FaceOf(from, to); };
-  std::vector<Eigen::Vector3i> neighbours(face_count);
-  std::atomic<bool> closed = true;
-  // Every directed edge's reverse run by exactly one face is enough: a directed edge run twice
-  // is the reverse of an edge (itself run, else that edge has no reverse) that then finds two.
-  ParallelChunks(0, face_count, 8192, [&](std::size_t begin, std::size_t end) {
-    for (std::size_t face = begin; face < end; ++face) {
+  const std::size_t n = mesh.vertices.size();
+  // Each vertex's outgoing edges, grouped by vertex: their ends, and their faces with the corner
+  // they start from (face * 4 + corner).
+  std::vector<std::uint32_t> first(n + 1, 0);
+  for (const Eigen::Vector3i& f : mesh.faces) {
+    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
+  std::vector<int> to(first[n]);
+  std::vector<std::uint32_t> run_by(first[n]);
+  {
+    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
+    for (std::size_t face = 0; face < face_count; ++face) {
       const Eigen::Vector3i& f = mesh.faces[face];
       for (int e = 0; e < 3; ++e) {
-        const int a = f[e];
-        const int b = f[(e + 1) % 3];
-        const int across = a == b ? -1 : face_of(b, a);
-        if (across < 0) {
+        const std::uint32_t k = next[static_cast<std::size_t>(f[e])]++;
+        to[k] = f[(e + 1) % 3];
+        run_by[k] = static_cast<std::uint32_t>(face * 4 + static_cast<std::size_t>(e));
+      }
+    }
+  }
+  std::vector<Eigen::Vector3i> neighbours(face_count);
+  std::atomic<bool> closed = true;
+  std::atomic<std::int64_t> pairs = 0;
+  // Each edge once, from its lower vertex a to b: a -> b run once (no other a -> b in a's list)
+  // and b -> a once (in b's), the two faces each other's neighbours. A directed edge matched so
+  // is not matched again (its pair is its edge's), so the mesh is closed and consistently
+  // oriented iff no edge is run twice and the pairs found are half the directed edges (a
+  // degenerate edge a -> a, or one with no reverse, is never matched). Each (face, corner) is
+  // written by its pair alone.
+  ParallelChunks(0, n, 4096, [&](std::size_t lo, std::size_t hi) {
+    std::int64_t found = 0;
+    for (std::size_t a = lo; a < hi; ++a) {
+      const std::uint32_t end = first[a + 1];
+      for (std::uint32_t k = first[a]; k < end; ++k) {
+        const int b = to[k];
+        if (b <= static_cast<int>(a)) continue;
+        bool once = true;
+        for (std::uint32_t other = k + 1; other < end; ++other) once = once && to[other] != b;
+        std::uint32_t reverse = 0;
+        int reverses = 0;
+        for (std::uint32_t m = first[static_cast<std::size_t>(b)];
+             m < first[static_cast<std::size_t>(b) + 1]; ++m) {
+          if (to[m] != static_cast<int>(a)) continue;
+          reverse = m;
+          ++reverses;
+        }
+        if (!once || reverses != 1) {
           closed.store(false, std::memory_order_relaxed);
           return;
         }
-        neighbours[face][e] = across;
+        const std::uint32_t left = run_by[k];
+        const std::uint32_t right = run_by[reverse];
+        neighbours[left / 4][static_cast<int>(left % 4)] = static_cast<int>(right / 4);
+        neighbours[right / 4][static_cast<int>(right % 4)] = static_cast<int>(left / 4);
+        ++found;
       }
     }
+    pairs.fetch_add(found, std::memory_order_relaxed);
   });
-  if (!closed.load()) return {};
+  if (!closed.load() || 2 * pairs.load() != static_cast<std::int64_t>(first[n])) return {};
   return neighbours;
 }
 

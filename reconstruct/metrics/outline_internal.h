@@ -45,24 +45,10 @@ struct SharedEdge {
 // (the mesh is not closed and consistently oriented).
 std::vector<SharedEdge> SharedEdges(const Mesh& mesh);
 
-// Each vertex's outgoing edges: the faces' directed edges grouped by their first vertex.
-// Precondition: the faces' indices are the mesh's vertices'.
-class OutgoingEdges {
- public:
-  explicit OutgoingEdges(const Mesh& mesh);
-  // How many faces run the edge from -> to.
-  int Uses(int from, int to) const;
-  // The face that runs it; -1 when none does, -2 when more than one.
-  int FaceOf(int from, int to) const;
-
- private:
-  std::vector<std::uint32_t> first_;      // per vertex, into out_
-  std::vector<std::pair<int, int>> out_;  // (to, face)
-};
-
 // Each face's neighbours: [e] is the face that runs its edge corner e -> corner e + 1 backwards.
 // Empty when some edge is not used exactly once in each direction (the mesh is not closed and
-// consistently oriented): SharedEdges(mesh) empty.
+// consistently oriented): SharedEdges(mesh) empty. Each edge is looked up once, from its lower
+// vertex, on all cores. Precondition: fewer than 2^30 faces.
 std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh);
 
 // The silhouette of a closed mesh from its outline, every edge looked at: the pixels whose
