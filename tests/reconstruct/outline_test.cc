@@ -342,6 +342,24 @@ void AddTetrahedron(Mesh* mesh, const Eigen::Vector3f& corner) {
 // oriented exactly when ComputeStats does: on flawless meshes, a face turned over, one removed,
 // one doubled, a face with a repeated corner, and two solids sharing an edge (each direction run
 // twice).
+// Each face's neighbour across corner e -> e + 1 is the face that runs that edge backwards.
+TEST(Outline, NeighboursRunEachEdgeBackwards) {
+  for (const Mesh& mesh : HullMeshes()) {
+    const std::vector<Eigen::Vector3i> neighbours = outline_internal::FaceNeighbours(mesh);
+    ASSERT_EQ(neighbours.size(), mesh.faces.size());
+    for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+      for (int e = 0; e < 3; ++e) {
+        const int a = mesh.faces[i][e];
+        const int b = mesh.faces[i][(e + 1) % 3];
+        const Eigen::Vector3i& other = mesh.faces[static_cast<std::size_t>(neighbours[i][e])];
+        bool runs_back = false;
+        for (int k = 0; k < 3; ++k) runs_back |= other[k] == b && other[(k + 1) % 3] == a;
+        ASSERT_TRUE(runs_back) << "face " << i << " corner " << e;
+      }
+    }
+  }
+}
+
 TEST(Outline, IndexFindsClosedAndOrientedAsComputeStatsDoes) {
   Mesh tetrahedron;
   AddTetrahedron(&tetrahedron, Eigen::Vector3f(0, 0, 30));
