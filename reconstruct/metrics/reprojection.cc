@@ -142,12 +142,12 @@ BoxedSilhouette RenderSilhouetteInBox(const Mesh& mesh, const View& view, bool c
       // Every pixel tested, no branch on the outcome (a few pixels a row: mispredicted
       // branches cost more than the tests they would skip); the pixels are 0 or 255.
       for (int v = v0; v <= v1; ++v) {
-        auto* row = out.ptr<std::uint8_t>(v - box_v0) - box_u0;
+        auto* row = out.ptr<std::uint8_t>(v - box_v0);
         for (int u = u0; u <= u1; ++u) {
           const int inside = static_cast<int>(Inside(edges[0], sign, u, v)) &
                              static_cast<int>(Inside(edges[1], sign, u, v)) &
                              static_cast<int>(Inside(edges[2], sign, u, v));
-          row[u] |= inside != 0 ? 255 : 0;
+          row[u - box_u0] |= inside != 0 ? 255 : 0;
         }
       }
       continue;
