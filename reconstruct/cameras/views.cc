@@ -70,8 +70,14 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
 // Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
 // index range of the survivors is an exact minimum and maximum over the layers' (and over each
 // row's first and last survivor).
-CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
-                        const Box& box, const AutoVolumeOptions& options) {
+// Cells a block test covers (CoarseCarve), and the views it asks.
+constexpr int kBlockCells = 16;
+constexpr std::size_t kBlockViews = 4;
+
+// `rects`: each mask's MaskRect.
+CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv::Rect>& rects,
+                        const std::vector<View>& views, const Box& box,
+                        const AutoVolumeOptions& options) {
   CarveResult result;
   const Eigen::Vector3d size = box.Size();
   result.cell = size.maxCoeff() / options.resolution;
@@ -93,10 +99,66 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
     Layer& out = layers[layer];
     std::vector<std::size_t> order(views.size());
     std::iota(order.begin(), order.end(), std::size_t{0});
+    const auto centre = [&](int i, int j) -> Eigen::Vector3d {
+      return result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
+    };
     const auto survives = [&](int i, int j) {
-      const Eigen::Vector3d x =
-          result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
-      return CellSurvives(masks, views, x, seen_needed, options.tolerated_misses, &order);
+      return CellSurvives(masks, views, centre(i, j), seen_needed, options.tolerated_misses,
+                          &order);
+    };
+    // Whether every cell i0..i1 of row j falls for certain, from the line through their centres:
+    // more than `tolerated_misses` of the first kBlockViews views (in `order`) see all of it in
+    // their image, in front and off their silhouette's rectangle. The centres lie on the segment
+    // between the two ends' (to rounding), so their pixels (floor(u + 0.5)) lie within a pixel
+    // of the ends' pixels' rectangle: each such view sees each cell and misses it, as
+    // CellSurvives would find. False says nothing.
+    const auto block_falls = [&](int i0, int i1, int j) {
+      const Eigen::Vector3d ends[2] = {centre(i0, j), centre(i1, j)};
+      int misses = 0;
+      for (std::size_t n = 0; n < std::min(kBlockViews, order.size()); ++n) {
+        const std::size_t v = order[n];
+        const Matrix34d& p = views[v].pixel_from_object;
+        double u[2], w[2], depth[2];
+        for (int e = 0; e < 2; ++e) {
+          const Eigen::Vector3d h = p.leftCols<3>() * ends[e] + p.col(3);
+          depth[e] = h.z();
+          u[e] = h.z() == 1.0 ? h.x() : h.x() / h.z();
+          w[e] = h.z() == 1.0 ? h.y() : h.y() / h.z();
+        }
+        // In front all along, with room for the rounding of the cells' depths.
+        if (!(std::min(depth[0], depth[1]) > 1e-6 * std::max(depth[0], depth[1]))) continue;
+        const double u_lo = std::floor(std::min(u[0], u[1]) + 0.5) - 1.0;
+        const double u_hi = std::floor(std::max(u[0], u[1]) + 0.5) + 1.0;
+        const double w_lo = std::floor(std::min(w[0], w[1]) + 0.5) - 1.0;
+        const double w_hi = std::floor(std::max(w[0], w[1]) + 0.5) + 1.0;
+        if (!(u_lo >= 0.0 && w_lo >= 0.0 && u_hi < views[v].width_px &&
+              w_hi < views[v].height_px)) {
+          continue;
+        }
+        const cv::Rect& r = rects[v];
+        const bool apart = r.empty() || u_hi < r.x || u_lo >= r.x + r.width || w_hi < r.y ||
+                           w_lo >= r.y + r.height;
+        if (apart && ++misses > options.tolerated_misses) return true;
+      }
+      return false;
+    };
+    // The first survivor of row j from `from` towards `to` (exclusive), `step` +1 or -1; `to`
+    // when none. Blocks of cells that fall for certain are passed over untested.
+    const auto first_survivor = [&](int j, int from, int to, int step) {
+      int i = from;
+      while (i != to) {
+        const int block = std::min((to - i) * step, kBlockCells);
+        const int last = i + step * (block - 1);
+        if (options.block_tests && block > 1 &&
+            block_falls(std::min(i, last), std::max(i, last), j)) {
+          i += step * block;
+          continue;
+        }
+        for (int n = 0; n < block; ++n, i += step) {
+          if (survives(i, j)) return i;
+        }
+      }
+      return to;
     };
     const auto add = [&](const Eigen::Vector3i& c) {
       if (!out.any) {
@@ -116,11 +178,9 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
     const int ny = result.dims.y();
     // Row j's first and last survivor (false: none).
     const auto whole_row = [&](int j) {
-      int i_first = 0;
-      while (i_first < nx && !survives(i_first, j)) ++i_first;
+      const int i_first = first_survivor(j, 0, nx, 1);
       if (i_first == nx) return false;
-      int i_last = nx - 1;
-      while (i_last > i_first && !survives(i_last, j)) --i_last;
+      const int i_last = first_survivor(j, nx - 1, i_first, -1);
       add(Eigen::Vector3i(i_first, j, k));
       add(Eigen::Vector3i(i_last, j, k));
       return true;
@@ -131,17 +191,11 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<Vie
     int j_high = ny - 1;
     while (j_high > j_low && !whole_row(j_high)) --j_high;
     for (int j = j_low + 1; j < j_high; ++j) {
-      for (int i = 0; i < out.lo.x(); ++i) {
-        if (survives(i, j)) {
-          add(Eigen::Vector3i(i, j, k));
-          break;
-        }
+      if (const int i = first_survivor(j, 0, out.lo.x(), 1); i < out.lo.x()) {
+        add(Eigen::Vector3i(i, j, k));
       }
-      for (int i = nx - 1; i > out.hi.x(); --i) {
-        if (survives(i, j)) {
-          add(Eigen::Vector3i(i, j, k));
-          break;
-        }
+      if (const int i = first_survivor(j, nx - 1, out.hi.x(), -1); i > out.hi.x()) {
+        add(Eigen::Vector3i(i, j, k));
       }
     }
   });
@@ -347,7 +401,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
              *centre + Eigen::Vector3d::Constant(1.5 * radius)};
   CarveResult carve;
   for (int attempt = 0;; ++attempt) {
-    carve = CoarseCarve(masks, views, search, options);
+    carve = CoarseCarve(masks, rects, views, search, options);
     if (!carve.any) {
       return MakeError(ErrorCode::kBadInput,
                        "no point lies inside every silhouette that sees it: the cameras do not "
@@ -358,7 +412,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   }
   result.touches_limit = carve.touches;
   const Box first = SurvivorsBox(carve, options.margin_cells);
-  carve = CoarseCarve(masks, views, first, options);
+  carve = CoarseCarve(masks, rects, views, first, options);
   result.box = carve.any ? SurvivorsBox(carve, options.margin_cells) : first;
   Logger("reconstruct")
       ->debug(

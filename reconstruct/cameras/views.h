@@ -72,6 +72,10 @@ struct AutoVolumeOptions {
   // silhouettes: one mask that lost a part of the object (a shadow cut away in one frame) does
   // not cut the box short of it, so the silhouette consensus can find that mask out.
   int tolerated_misses = 1;
+  // Blocks of cells that fall for certain (whole rows' stretches seen off the silhouettes'
+  // rectangles) are passed over untested; the same volume. False: every cell tested one by one
+  // (the reference the tests compare with).
+  bool block_tests = true;
 };
 
 struct AutoVolume {

@@ -6,6 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "reconstruct/cameras/views.h"
 #include "reconstruct/hull/visual_hull.h"
 #include "tests/reconstruct/sphere_scene.h"
 
@@ -128,6 +129,26 @@ BENCHMARK(BM_ExtractSurface)
     ->Args({256, 1})
     ->Args({256, 0})
     ->Args({256, 2})
+    ->Unit(benchmark::kMillisecond);
+
+// The carving volume found from the silhouettes alone (CarvingVolumeFromSilhouettes: two coarse
+// passes of 64^3 cells), as `reconstruct --images` finds it before and after the consensus;
+// range(0) = 1 passes over blocks of cells that fall for certain, 0 tests every cell (the
+// reference).
+void BM_CarvingVolume(benchmark::State& state) {
+  const Scene& s = GetScene(256);
+  AutoVolumeOptions options;
+  options.block_tests = state.range(0) != 0;
+  for (auto _ : state) {
+    const Expected<AutoVolume> volume = CarvingVolumeFromSilhouettes(s.masks, s.views, options);
+    benchmark::DoNotOptimize(volume);
+  }
+}
+BENCHMARK(BM_CarvingVolume)
+    ->Name("CarvingVolume")
+    ->ArgName("blocks")
+    ->Arg(0)
+    ->Arg(1)
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace
