@@ -5,7 +5,10 @@
 //                                          header checks, one strict decode), nothing more
 //   images_reference naive-carve DIR RES   loads DIR's binary silhouettes, finds the carving volume
 //                                          and carves RES^3 voxels per voxel (thesis cameras, 10
-//                                          degrees a view); writes nothing
+//                                          degrees a view; every cell of the volume's coarse
+//                                          passes tested); writes nothing
+//   images_reference jpeg SRC DST QUALITY  writes every image of SRC into DST as JPEG (OpenCV's
+//                                          encoder; how docs/performance.md's photo set is made)
 // Prints what it did; exit status 1 on a bad folder.
 #include <cstdio>
 #include <cstdlib>
@@ -70,12 +73,37 @@ int NaiveCarve(const std::filesystem::path& dir, int resolution) {
     masks.push_back(image.mask);
     views.push_back(rc::ThesisView(set->width_px, set->height_px, image.angle_deg));
   }
-  const revolve::Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(masks, views);
+  rc::AutoVolumeOptions every_cell;
+  every_cell.block_tests = false;
+  const revolve::Expected<rc::AutoVolume> volume =
+      rc::CarvingVolumeFromSilhouettes(masks, views, every_cell);
   if (!volume) return 1;
   rc::VisualHull hull(*rc::VoxelGrid::FromBox(volume->box.min, volume->box.max, resolution));
   for (std::size_t k = 0; k < masks.size(); ++k) (void)hull.IntegrateNaive(masks[k], views[k]);
   std::printf("carved %zu views per voxel: %lld voxels occupied\n", masks.size(),
               static_cast<long long>(hull.OccupiedCount()));
+  return 0;
+}
+
+int Jpeg(const std::filesystem::path& src, const std::filesystem::path& dst, int quality) {
+  const revolve::Expected<std::vector<std::filesystem::path>> files = revolve::ListImageFiles(src);
+  if (!files || files->empty()) {
+    std::fprintf(stderr, "%s: no images\n", src.string().c_str());
+    return 1;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dst, ec);
+  for (const std::filesystem::path& file : *files) {
+    const cv::Mat image = cv::imread(file.string(), cv::IMREAD_COLOR);
+    const std::filesystem::path out = dst / file.filename().replace_extension(".jpg");
+    if (image.empty() || !cv::imwrite(out.string(), image, {cv::IMWRITE_JPEG_QUALITY, quality})) {
+      std::fprintf(stderr, "%s: cannot convert to %s\n", file.string().c_str(),
+                   out.string().c_str());
+      return 1;
+    }
+  }
+  std::printf("wrote %zu JPEGs (quality %d) into %s\n", files->size(), quality,
+              dst.string().c_str());
   return 0;
 }
 
@@ -87,7 +115,9 @@ int main(int argc, char** argv) {
   if (mode == "decode" && argc == 3) return Decode(argv[2]);
   if (mode == "read" && argc == 3) return Read(argv[2]);
   if (mode == "naive-carve" && argc == 4) return NaiveCarve(argv[2], std::atoi(argv[3]));
+  if (mode == "jpeg" && argc == 5) return Jpeg(argv[2], argv[3], std::atoi(argv[4]));
   std::fprintf(stderr,
-               "usage: images_reference decode DIR | read DIR | naive-carve DIR RESOLUTION\n");
+               "usage: images_reference decode DIR | read DIR | naive-carve DIR RESOLUTION | "
+               "jpeg SRC DST QUALITY\n");
   return 2;
 }
