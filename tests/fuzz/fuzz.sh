@@ -20,12 +20,12 @@ done
 [ ${#targets[@]} -gt 0 ] || targets=(config cameras manifest protocol image_header image_decode calibration)
 
 if ! command -v clang++-16 >/dev/null; then
-  echo "fuzz: clang++-16 not found (apt-get install clang-16 libfuzzer-16-dev): skipped" >&2
+  echo "fuzz: clang++-16 not found (apt-get install clang-16 libfuzzer-16-dev libclang-rt-16-dev): skipped" >&2
   exit 77
 fi
 if ! echo 'extern "C" int LLVMFuzzerTestOneInput(const char*, unsigned long) { return 0; }' |
     clang++-16 -x c++ -fsanitize=fuzzer - -o /dev/null 2>/dev/null; then
-  echo "fuzz: clang-16 cannot link -fsanitize=fuzzer (apt-get install libfuzzer-16-dev): skipped" >&2
+  echo "fuzz: clang-16 cannot link -fsanitize=fuzzer (apt-get install libfuzzer-16-dev libclang-rt-16-dev, its runtime): skipped" >&2
   exit 77
 fi
 
