@@ -67,14 +67,13 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
   return seen >= seen_needed && (misses == 0 || seen >= kMinViewsToOutvote);
 }
 
-// Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
-// index range of the survivors is an exact minimum and maximum over the layers' (and over each
-// row's first and last survivor).
 // Cells a block test covers (CoarseCarve), and the views it asks.
 constexpr int kBlockCells = 16;
 constexpr std::size_t kBlockViews = 4;
 
-// `rects`: each mask's MaskRect.
+// Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
+// index range of the survivors is an exact minimum and maximum over the layers' (and over each
+// row's first and last survivor). `rects`: each mask's MaskRect.
 CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv::Rect>& rects,
                         const std::vector<View>& views, const Box& box,
                         const AutoVolumeOptions& options) {
