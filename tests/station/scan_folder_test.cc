@@ -1,5 +1,6 @@
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -113,6 +114,30 @@ TEST(ContactSheetTest, AGreyThumbnailInColourIsTheThumbnailOfTheColourCopy) {
     const cv::Mat expected = ContactSheetThumbnail(colour);
     ASSERT_EQ(grey_then_colour.size(), expected.size()) << size;
     EXPECT_EQ(cv::norm(grey_then_colour, expected, cv::NORM_INF), 0.0) << size;
+  }
+}
+
+// A frame's thumbnail is cv::resize's area average at the thumbnail's whole factor, to the bit:
+// photos of common sizes, sizes no factor divides (the blocks the right and bottom borders cut
+// short), grey and colour, a frame that needs no shrinking, and a factor OpenCV does not treat
+// as whole (49: 1 / (1 / 49) is not 49).
+TEST(ContactSheetTest, AThumbnailIsOpenCvsAreaAverage) {
+  cv::RNG rng(5);
+  for (const cv::Size size : {cv::Size(1280, 960), cv::Size(720, 576), cv::Size(641, 479),
+                              cv::Size(1283, 967), cv::Size(4000, 3000), cv::Size(385, 13),
+                              cv::Size(193, 2), cv::Size(150, 100), cv::Size(9300, 60)}) {
+    for (const int type : {CV_8UC3, CV_8UC1}) {
+      cv::Mat frame(size, type);
+      rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+      if (size.width > 600) frame(cv::Rect(0, 0, 300, size.height / 2)).setTo(cv::Scalar::all(255));
+      const double fx = 1.0 / std::max(1, (size.width + 191) / 192);
+      cv::Mat expected;
+      cv::resize(frame, expected, cv::Size(), fx, fx, cv::INTER_AREA);
+      const cv::Mat thumbnail = ContactSheetThumbnail(frame);
+      ASSERT_EQ(thumbnail.size(), expected.size()) << size;
+      ASSERT_EQ(thumbnail.type(), expected.type()) << size;
+      EXPECT_EQ(cv::norm(thumbnail, expected, cv::NORM_INF), 0.0) << size << " type " << type;
+    }
   }
 }
 
