@@ -222,19 +222,22 @@ bool UsesNoiseHysteresis(const ScoreLevels& levels) {
   return levels.noise >= 0.0 && levels.noise < ProbableLevel(levels);
 }
 
-cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radius_px) {
-  cv::Mat levels(full_mask.size(), CV_32FC1, cv::Scalar(-1.0f));
+EdgeLevelPart EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radius_px) {
   // Only around the object: the band lies within radius_px of its rectangle, and a band pixel's
   // window reaches 2 radius_px + 1 further. The work is done on views of that part of the frame
   // (morphology reads the frame's own pixels past a view's edge, as on the whole frame), and the
   // window sums are of whole numbers (scores of 0..255, counts), exact in any order: the same
   // levels as over the whole frame, for the part of the work the object's surroundings take.
+  EdgeLevelPart found;
   const cv::Rect object = MaskRect(full_mask);
-  if (object.empty()) return levels;
+  if (object.empty()) return found;
   const int margin = 3 * radius_px + 3;
   const cv::Rect part = cv::Rect(object.x - margin, object.y - margin, object.width + 2 * margin,
                                  object.height + 2 * margin) &
                         cv::Rect(0, 0, full_mask.cols, full_mask.rows);
+  found.part = part;
+  found.levels = cv::Mat(part.size(), CV_32FC1, cv::Scalar(-1.0f));
+  cv::Mat& levels = found.levels;
   const cv::Mat mask = full_mask(part);
   const cv::Mat score = full_score(part);
   const cv::Mat inside = Eroded(mask, radius_px + 1);
@@ -254,7 +257,7 @@ cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radi
     const auto* ic = in_count.ptr<std::int32_t>(y);
     const auto* os = out_sum.ptr<std::int32_t>(y);
     const auto* oc = out_count.ptr<std::int32_t>(y);
-    auto* l = levels.ptr<float>(part.y + y) + part.x;
+    auto* l = levels.ptr<float>(y);
     for (int x = 0; x < mask.cols; ++x) {
       if (!b[x] || ic[x] == 0 || oc[x] == 0) continue;
       const int inside_count = ic[x] / 255;  // exact: 255 per pixel
@@ -265,17 +268,18 @@ cv::Mat EdgeLevels(const cv::Mat& full_mask, const cv::Mat& full_score, int radi
                  (static_cast<float>(is[x]) / static_cast<float>(inside_count) - outside_level);
     }
   }
-  return levels;
+  return found;
 }
 
 cv::Mat PlaceEdge(const cv::Mat& mask, const cv::Mat& score, int radius_px) {
-  const cv::Mat levels = EdgeLevels(mask, score, radius_px);
+  const EdgeLevelPart found = EdgeLevels(mask, score, radius_px);
   cv::Mat out = mask.clone();
-  for (int y = 0; y < mask.rows; ++y) {
-    const auto* l = levels.ptr<float>(y);
-    const auto* s = score.ptr<std::uint8_t>(y);
-    auto* o = out.ptr<std::uint8_t>(y);
-    for (int x = 0; x < mask.cols; ++x) {
+  const cv::Rect& part = found.part;
+  for (int y = 0; y < part.height; ++y) {
+    const auto* l = found.levels.ptr<float>(y);
+    const auto* s = score.ptr<std::uint8_t>(part.y + y) + part.x;
+    auto* o = out.ptr<std::uint8_t>(part.y + y) + part.x;
+    for (int x = 0; x < part.width; ++x) {
       if (l[x] >= 0.0f) o[x] = s[x] >= l[x] ? 255 : 0;
     }
   }

@@ -86,12 +86,20 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
 cv::Mat RefineWithGraphCut(const cv::Mat& bgr, const cv::Mat& score, const Trimap& trimap,
                            const GraphCutOptions& options);
 
+// Edge levels over the part of a mask that can hold any: `levels` (CV_32FC1, the part's size)
+// are the mask's pixels from `part`'s corner on; no pixel outside `part` has a level (-1 there).
+struct EdgeLevelPart {
+  cv::Rect part;   // within the mask; empty (and `levels` too) for a mask with no pixel set
+  cv::Mat levels;  // CV_32FC1
+};
+
 // Where the edge of `mask` (CV_8UC1, 0/255) lies in `score` (CV_8UC1): for each pixel within
 // `radius_px` of the edge, the level 35 % of the way from the mean score of the backdrop pixels
 // nearby (outside the mask by more than radius_px) to that of the object pixels nearby (inside by
 // more than radius_px), in a window of 4 radius_px + 3; -1 elsewhere or where one side has no
-// pixel in the window. CV_32FC1 of the mask's size.
-cv::Mat EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px);
+// pixel in the window. Held over the rectangle of the mask's pixels widened by 3 radius_px + 3
+// (the band and its windows), not over the whole mask.
+EdgeLevelPart EdgeLevels(const cv::Mat& mask, const cv::Mat& score, int radius_px);
 
 // `mask` with every pixel that has an edge level (EdgeLevels) decided again: object when its
 // score reaches the level. The object's rim (pixels it partly covers) stays in, as a carved

@@ -114,7 +114,7 @@ MaskEdge EdgeOf(const cv::Mat& mask) {
 }
 
 cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels,
-                 const MaskEdge* edge) {
+                 const MaskEdge* edge, cv::Point levels_origin) {
   if (factor <= 1 && levels.empty()) return mask;
   // Only around the object (its rectangle and a pixel more, where its edge is). Elsewhere the
   // enlarged mask is 0: for a factor that is a power of two, cv::resize's nearest pixel (the
@@ -138,11 +138,16 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv
     if (part.empty()) return full;
   }
   const bool one_level = levels.total() == 1;
+  const cv::Rect held = one_level ? cv::Rect() : cv::Rect(levels_origin, levels.size());
   for (int y = part.y; y < part.y + part.height; ++y) {
     const auto* e = gradient.ptr<std::uint8_t>(y - part.y) - part.x;
-    const float* l = one_level ? levels.ptr<float>(0) : levels.ptr<float>(y);
+    const bool row_held = y >= held.y && y < held.y + held.height;
+    const float* l = one_level  ? levels.ptr<float>(0)
+                     : row_held ? levels.ptr<float>(y - held.y) - held.x
+                                : nullptr;
     for (int x = part.x; x < part.x + part.width; ++x) {
       if (!e[x]) continue;
+      if (!one_level && (l == nullptr || x < held.x || x >= held.x + held.width)) continue;
       const float level = one_level ? l[0] : l[x];
       if (level < 0.0f) continue;
       for (int dy = 0; dy < factor; ++dy) {

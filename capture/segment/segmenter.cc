@@ -229,9 +229,10 @@ class PipelineSegmenter final : public Segmenter {
     cv::Mat mask_w = CleanUp(cut_w, roi_w, &scored, factor);
     if (factor == 1) return mask_w;
     const MaskEdge edge = EdgeOf(mask_w);
+    const EdgeLevelPart levels = EdgeLevels(mask_w, scored.score, 1);
     cv::Mat mask =
         Enlarged(mask_w, factor, DistanceAroundEdge(bgr, backdrop, shadows, edge, factor),
-                 EdgeLevels(mask_w, scored.score, 1), &edge);
+                 levels.levels, &edge, levels.part.tl());
     if (!roi.empty()) mask &= roi;
     return mask;
   }
