@@ -42,9 +42,10 @@ constexpr int kMinViewsToOutvote = 8;
 // `order` (a permutation of them): the answer is the same in any order (a cell falls once more
 // than `tolerated` views miss it, whichever they are), and a view that misses it is moved to the
 // front, so that the next cells, its neighbours, meet the views that miss them first.
-bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& views,
-                  const Eigen::Vector3d& x, int seen_needed, int tolerated,
-                  std::vector<std::size_t>* order) {
+// `origins`: each mask's window origin (empty: whole masks), as CarvingVolumeFromSilhouettes's.
+bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<cv::Point>& origins,
+                  const std::vector<View>& views, const Eigen::Vector3d& x, int seen_needed,
+                  int tolerated, std::vector<std::size_t>* order) {
   int seen = 0;
   int misses = 0;
   for (std::size_t n = 0; n < order->size(); ++n) {
@@ -58,7 +59,13 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<View>& vi
     const double w = std::floor((unit_depth ? h.y() : h.y() / h.z()) + 0.5);
     if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
     ++seen;
-    if (masks[v].at<std::uint8_t>(static_cast<int>(w), static_cast<int>(u)) == 0) {
+    // The pixel in the mask's window (off the silhouette outside it).
+    const cv::Mat& mask = masks[v];
+    const int column = static_cast<int>(u) - (origins.empty() ? 0 : origins[v].x);
+    const int row = static_cast<int>(w) - (origins.empty() ? 0 : origins[v].y);
+    const bool in_window = static_cast<unsigned>(column) < static_cast<unsigned>(mask.cols) &&
+                           static_cast<unsigned>(row) < static_cast<unsigned>(mask.rows);
+    if (!in_window || mask.at<std::uint8_t>(row, column) == 0) {
       std::rotate(order->begin(), order->begin() + static_cast<std::ptrdiff_t>(n),
                   order->begin() + static_cast<std::ptrdiff_t>(n) + 1);
       if (++misses > tolerated) return false;
@@ -73,10 +80,10 @@ constexpr std::size_t kBlockViews = 4;
 
 // Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
 // index range of the survivors is an exact minimum and maximum over the layers' (and over each
-// row's first and last survivor). `rects`: each mask's MaskRect.
-CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv::Rect>& rects,
-                        const std::vector<View>& views, const Box& box,
-                        const AutoVolumeOptions& options) {
+// row's first and last survivor). `rects`: each mask's MaskRect, in its view's image.
+CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv::Point>& origins,
+                        const std::vector<cv::Rect>& rects, const std::vector<View>& views,
+                        const Box& box, const AutoVolumeOptions& options) {
   CarveResult result;
   const Eigen::Vector3d size = box.Size();
   result.cell = size.maxCoeff() / options.resolution;
@@ -102,8 +109,8 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv:
       return result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
     };
     const auto survives = [&](int i, int j) {
-      return CellSurvives(masks, views, centre(i, j), seen_needed, options.tolerated_misses,
-                          &order);
+      return CellSurvives(masks, origins, views, centre(i, j), seen_needed,
+                          options.tolerated_misses, &order);
     };
     // Whether every cell i0..i1 of row j falls for certain, from the line through their centres:
     // more than `tolerated_misses` of the first kBlockViews views (in `order`) see all of it in
@@ -318,13 +325,22 @@ View NormaliseViewSign(View view, const Eigen::Vector3d& point_in_front) {
 }
 
 Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
-                                           const std::vector<View>& views) {
+                                           const std::vector<View>& views,
+                                           const std::vector<cv::Point>& mask_origins) {
   Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> directions;
   // Each mask's moments on all cores; summed in mask order.
   std::vector<MaskMoments> all_moments(std::min(masks.size(), views.size()));
-  ParallelFor(0, all_moments.size(), [&](std::size_t i) { all_moments[i] = Moments(masks[i]); });
+  // A window's moments moved to its origin: whole numbers, exact.
+  ParallelFor(0, all_moments.size(), [&](std::size_t i) {
+    MaskMoments moments = Moments(masks[i]);
+    if (!mask_origins.empty()) {
+      moments.m10 += std::int64_t{mask_origins[i].x} * moments.m00;
+      moments.m01 += std::int64_t{mask_origins[i].y} * moments.m00;
+    }
+    all_moments[i] = moments;
+  });
   for (std::size_t i = 0; i < all_moments.size(); ++i) {
     const MaskMoments& moments = all_moments[i];
     if (moments.m00 <= 0) continue;
@@ -355,20 +371,26 @@ Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
 
 Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& masks,
                                                   const std::vector<View>& views_in,
-                                                  const AutoVolumeOptions& options) {
-  if (masks.size() != views_in.size()) {
+                                                  const AutoVolumeOptions& options,
+                                                  const std::vector<cv::Point>& mask_origins) {
+  if (masks.size() != views_in.size() ||
+      (!mask_origins.empty() && mask_origins.size() != masks.size())) {
     return MakeError(ErrorCode::kBadInput,
-                     fmt::format("{} masks for {} views", masks.size(), views_in.size()));
+                     fmt::format("{} masks for {} views ({} window origins)", masks.size(),
+                                 views_in.size(), mask_origins.size()));
   }
   for (std::size_t i = 0; i < masks.size(); ++i) {
-    if (masks[i].type() != CV_8UC1 || masks[i].cols != views_in[i].width_px ||
-        masks[i].rows != views_in[i].height_px) {
+    const cv::Rect image(0, 0, views_in[i].width_px, views_in[i].height_px);
+    const cv::Rect window(mask_origins.empty() ? cv::Point() : mask_origins[i], masks[i].size());
+    const bool fits = mask_origins.empty() ? window == image : (window & image) == window;
+    if (masks[i].type() != CV_8UC1 || !fits) {
       return MakeError(ErrorCode::kBadInput,
-                       fmt::format("mask {} is not CV_8UC1 of its view's size {}x{}", i,
-                                   views_in[i].width_px, views_in[i].height_px));
+                       fmt::format("mask {} is not CV_8UC1 {} its view's size {}x{}", i,
+                                   mask_origins.empty() ? "of" : "within", views_in[i].width_px,
+                                   views_in[i].height_px));
     }
   }
-  Expected<Eigen::Vector3d> centre = SilhouetteCentre(masks, views_in);
+  Expected<Eigen::Vector3d> centre = SilhouetteCentre(masks, views_in, mask_origins);
   if (!centre) return std::unexpected(centre.error());
   std::vector<View> views;
   views.reserve(views_in.size());
@@ -377,7 +399,10 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   // The search box: the silhouettes' extents around the centre.
   double radius = 0.0;
   std::vector<cv::Rect> rects(masks.size());
-  ParallelFor(0, masks.size(), [&](std::size_t i) { rects[i] = MaskRect(masks[i]); });
+  ParallelFor(0, masks.size(), [&](std::size_t i) {
+    rects[i] = MaskRect(masks[i]);
+    if (!rects[i].empty() && !mask_origins.empty()) rects[i] += mask_origins[i];
+  });
   for (std::size_t i = 0; i < masks.size(); ++i) {
     const cv::Rect& rect = rects[i];
     if (rect.area() == 0) continue;
@@ -400,7 +425,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
              *centre + Eigen::Vector3d::Constant(1.5 * radius)};
   CarveResult carve;
   for (int attempt = 0;; ++attempt) {
-    carve = CoarseCarve(masks, rects, views, search, options);
+    carve = CoarseCarve(masks, mask_origins, rects, views, search, options);
     if (!carve.any) {
       return MakeError(ErrorCode::kBadInput,
                        "no point lies inside every silhouette that sees it: the cameras do not "
@@ -411,7 +436,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   }
   result.touches_limit = carve.touches;
   const Box first = SurvivorsBox(carve, options.margin_cells);
-  carve = CoarseCarve(masks, rects, views, first, options);
+  carve = CoarseCarve(masks, mask_origins, rects, views, first, options);
   result.box = carve.any ? SurvivorsBox(carve, options.margin_cells) : first;
   Logger("reconstruct")
       ->debug(

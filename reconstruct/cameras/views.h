@@ -50,10 +50,11 @@ View NormaliseViewSign(View view, const Eigen::Vector3d& point_in_front);
 
 // The point closest (least squares) to the rays through the centroids of the silhouettes: a
 // point inside the object seen by every view, whatever the sign of each P. Views with an empty
-// mask are skipped. Errors: bad_input when fewer than two rays remain or they are (nearly)
-// parallel.
+// mask are skipped. `mask_origins` as CarvingVolumeFromSilhouettes's. Errors: bad_input when
+// fewer than two rays remain or they are (nearly) parallel.
 Expected<Eigen::Vector3d> SilhouetteCentre(const std::vector<cv::Mat>& masks,
-                                           const std::vector<View>& views);
+                                           const std::vector<View>& views,
+                                           const std::vector<cv::Point>& mask_origins = {});
 
 struct Box {
   Eigen::Vector3d min = Eigen::Vector3d::Zero();
@@ -89,11 +90,14 @@ struct AutoVolume {
 // silhouettes' extents (doubled while the coarse hull touches it, up to 3 times), then two coarse
 // carving passes (the second inside the first's box), the box of the surviving cell centres
 // padded by `margin_cells`. `views` may have either sign; callers carving with them must
-// normalise them with the returned centre. Errors: bad_input when the masks and views disagree in
-// number or size, fewer than two masks hold an object, or nothing survives (the silhouettes agree
-// on no point: wrong cameras).
+// normalise them with the returned centre. `mask_origins` empty: each mask is its view's whole
+// image; else mask i is a window of it from mask_origins[i] on (within the image), none of the
+// silhouette outside it: the same volume as the whole masks give. Errors: bad_input when the
+// masks and views disagree in number or size, fewer than two masks hold an object, or nothing
+// survives (the silhouettes agree on no point: wrong cameras).
 Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& masks,
                                                   const std::vector<View>& views,
-                                                  const AutoVolumeOptions& options = {});
+                                                  const AutoVolumeOptions& options = {},
+                                                  const std::vector<cv::Point>& mask_origins = {});
 
 }  // namespace revolve::reconstruct

@@ -114,8 +114,8 @@ class ImagesRun {
     // The masks, for a person to check, once: those the carving uses, or the segmentation's
     // when the run stops before (why it stopped is then told, the masks written).
     if (!judged) {
-      REVOLVE_RETURN_IF_ERROR(
-          WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(), {}, problems_));
+      REVOLVE_RETURN_IF_ERROR(WriteMasks(options_.out, names_, thumbnails_, masks_, FrameSize(),
+                                         mask_origins_, problems_));
       return std::unexpected(judged.error());
     }
     REVOLVE_RETURN_IF_ERROR(WriteMasksWhileReconstructing());
@@ -360,16 +360,18 @@ class ImagesRun {
     }
     std::vector<cv::Mat> usable_masks;
     std::vector<View> usable_views;
+    std::vector<cv::Point> usable_origins;  // empty: whole masks
     usable_masks.reserve(usable_.size());
     usable_views.reserve(usable_.size());
     for (std::size_t i : usable_) {
       usable_masks.push_back(masks_[i]);
       usable_views.push_back(views_[i]);
+      if (!mask_origins_.empty()) usable_origins.push_back(mask_origins_[i]);
     }
     rc::AutoVolumeOptions volume_options;
     volume_options.tolerated_misses = tolerated_misses;
-    Expected<rc::AutoVolume> volume =
-        rc::CarvingVolumeFromSilhouettes(usable_masks, usable_views, volume_options);
+    Expected<rc::AutoVolume> volume = rc::CarvingVolumeFromSilhouettes(
+        usable_masks, usable_views, volume_options, usable_origins);
     if (!volume) {
       return std::unexpected(WithContext(volume.error(), "finding the carving volume"));
     }
@@ -386,21 +388,15 @@ class ImagesRun {
 
   // Every mask against the hull of the other views.
   Expected<void> Consensus() {
+    // From here each mask is held as its bounding rectangle (a fraction of the image): whole
+    // masks are made again one at a time where needed.
     Expected<std::vector<double>> agreement =
-        ApplyConsensus(masks_, views_, problems_, box_min_, box_max_, out_);
+        ApplyConsensus(masks_, views_, problems_, box_min_, box_max_, out_, &mask_origins_);
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));
     agreement_ = std::move(*agreement);
     CollectUsable();
     // The carving's volume: from the views left, every one of them trusted.
     if (!options_.bbox) REVOLVE_RETURN_IF_ERROR(FindVolume(0));
-    // From here each mask is held as its bounding rectangle (a fraction of the image): whole
-    // masks are made again one at a time where needed.
-    mask_origins_.assign(masks_.size(), cv::Point());
-    rc::ParallelFor(0, masks_.size(), [&](std::size_t i) {
-      const cv::Rect window = rc::FrameWindow(masks_[i], 0);
-      masks_[i] = masks_[i](window).clone();
-      mask_origins_[i] = window.tl();
-    });
     return {};
   }
 

@@ -13,6 +13,7 @@
 
 #include "base/atomic_file.h"
 #include "base/log.h"
+#include "base/mask_rect.h"
 #include "base/png_encode.h"
 #include "capture/segment/set_segmentation.h"
 #include "config/config.h"
@@ -198,8 +199,20 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
                                              const std::vector<View>& views,
                                              std::vector<std::string>& problems,
                                              const Eigen::Vector3d& box_min,
-                                             const Eigen::Vector3d& box_max, std::ostream& out) {
+                                             const Eigen::Vector3d& box_max, std::ostream& out,
+                                             std::vector<cv::Point>* mask_origins) {
   std::vector<double> agreement(masks.size(), 0.0);
+  mask_origins->assign(masks.size(), cv::Point());
+  // Each mask to its window, on all cores (a cut mask is cut to its window already).
+  std::vector<char> windowed(masks.size(), 0);
+  const auto to_windows = [&] {
+    reconstruct::ParallelFor(0, masks.size(), [&](std::size_t i) {
+      if (windowed[i]) return;
+      const cv::Rect window = reconstruct::FrameWindow(masks[i], 0);
+      masks[i] = masks[i](window).clone();
+      (*mask_origins)[i] = window.tl();
+    });
+  };
   std::vector<std::size_t> usable;
   std::vector<cv::Mat> usable_masks;
   std::vector<View> usable_views;
@@ -209,7 +222,10 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
     usable_masks.push_back(masks[i]);
     usable_views.push_back(views[i]);
   }
-  if (usable.size() < 3) return agreement;
+  if (usable.size() < 3) {
+    to_windows();
+    return agreement;
+  }
   Expected<reconstruct::SilhouetteConsensus> consensus =
       reconstruct::ConsensusOfSilhouettes(usable_masks, usable_views, box_min, box_max);
   if (!consensus) return std::unexpected(consensus.error());
@@ -226,9 +242,20 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
           agreement[i], median);
       continue;
     }
-    masks[i] = consensus->CutMask(k);
+    // The cut mask's own window: its silhouette's rectangle within the cut's (FrameWindow of
+    // the whole cut mask, an empty one's whole image).
+    const cv::Mat& cut = consensus->masks[k];
+    const cv::Rect tight = cut.empty() ? cv::Rect() : MaskRect(cut);
+    if (tight.empty()) {
+      masks[i] = cv::Mat::zeros(consensus->size[k], CV_8UC1);
+    } else {
+      masks[i] = cut(tight).clone();
+      (*mask_origins)[i] = consensus->cut_roi[k].tl() + tight.tl();
+    }
+    windowed[i] = 1;
     consensus->masks[k].release();
   }
+  to_windows();
   out << fmt::format("silhouette consensus: median agreement {:.3f} over {} views\n", median,
                      usable.size());
   return agreement;

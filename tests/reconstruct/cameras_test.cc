@@ -306,5 +306,58 @@ TEST(CarvingVolume, BlocksPassedOverGiveTheVolumeOfEveryCell) {
   }
 }
 
+// Masks held as windows of their images (the silhouette's rectangle, tight or with a margin cut
+// by the image's border, the whole image, an empty mask's empty window) give the centre and the
+// volume the whole masks give, to the bit.
+TEST(CarvingVolume, WindowsOfTheMasksGiveTheVolumeOfTheWholeMasks) {
+  const Rig rig = testing::StationRig(450.0, 10.0, 40.0);
+  const std::vector<testing::Sphere> scene = {{Eigen::Vector3d(0.0, 0.0, 45.0), 25.0},
+                                              {Eigen::Vector3d(36.0, 0.0, 45.0), 8.0}};
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  for (int k = 0; k < 36; ++k) {
+    masks.push_back(testing::SphereMask(rig, 10.0 * k, scene));
+    View view = testing::ViewOf(rig, 10.0 * k);
+    if (k % 5 == 0) view.pixel_from_object *= -3.0;
+    views.push_back(view);
+  }
+  // With one miss tolerated, a view whose mask is empty (its window too).
+  for (const int tolerated : {0, 1}) {
+    if (tolerated == 1) masks[7].setTo(0);
+    std::vector<cv::Mat> windows;
+    std::vector<cv::Point> origins;
+    for (std::size_t i = 0; i < masks.size(); ++i) {
+      const cv::Rect image(cv::Point(), masks[i].size());
+      const cv::Rect tight = cv::boundingRect(masks[i]);
+      const int margin = i % 3 == 0 ? 0 : 40;
+      const cv::Rect window = i == 4 ? image
+                              : tight.empty()
+                                  ? cv::Rect()
+                                  : cv::Rect(tight.x - margin, tight.y - margin,
+                                             tight.width + 2 * margin, tight.height + 2 * margin) &
+                                        image;
+      windows.push_back(masks[i](window).clone());
+      origins.push_back(window.tl());
+    }
+    const Expected<Eigen::Vector3d> whole_centre = SilhouetteCentre(masks, views);
+    const Expected<Eigen::Vector3d> window_centre = SilhouetteCentre(windows, views, origins);
+    ASSERT_TRUE(whole_centre.has_value() && window_centre.has_value());
+    EXPECT_EQ(std::memcmp(whole_centre->data(), window_centre->data(), 3 * sizeof(double)), 0);
+    AutoVolumeOptions options;
+    options.tolerated_misses = tolerated;
+    const Expected<AutoVolume> whole = CarvingVolumeFromSilhouettes(masks, views, options);
+    const Expected<AutoVolume> held =
+        CarvingVolumeFromSilhouettes(windows, views, options, origins);
+    ASSERT_TRUE(whole.has_value() && held.has_value()) << tolerated;
+    EXPECT_EQ(std::memcmp(whole->box.min.data(), held->box.min.data(), 3 * sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(whole->box.max.data(), held->box.max.data(), 3 * sizeof(double)), 0);
+    EXPECT_EQ(whole->touches_limit, held->touches_limit);
+    // A window reaching out of its image is refused.
+    std::vector<cv::Point> outside = origins;
+    outside[3] = cv::Point(masks[3].cols - windows[3].cols / 2, 0);
+    EXPECT_FALSE(CarvingVolumeFromSilhouettes(windows, views, options, outside).has_value());
+  }
+}
+
 }  // namespace
 }  // namespace revolve::reconstruct
