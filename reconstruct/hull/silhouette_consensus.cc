@@ -69,6 +69,8 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   for (const std::optional<Error>& error : errors) {
     if (error) return std::unexpected(*error);
   }
+  std::vector<cv::Rect> mask_rects(masks.size());  // each mask's MaskRect, found in preparing it
+  for (std::size_t j = 0; j < masks.size(); ++j) mask_rects[j] = prepared[j].mask_rect();
   // Each view carves once; hull i is the other views' survivors (VisualHull::LeaveOneOut).
   const VisualHull::LeaveOneOut hulls(*grid, std::move(prepared));
   HullSurfaceOptions midpoints;
@@ -90,7 +92,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
       others_rect = MaskRect(others.pixels);
       if (!others_rect.empty()) others_rect += others.box.tl();
     }
-    cv::Rect roi = others_rect | MaskRect(masks[i]);
+    cv::Rect roi = others_rect | mask_rects[i];
     roi =
         cv::Rect(roi.x - radius, roi.y - radius, roi.width + 2 * radius, roi.height + 2 * radius) &
         image;

@@ -569,6 +569,8 @@ Expected<VisualHull::PreparedView> VisualHull::PrepareView(const cv::Mat& mask, 
   return prepared;
 }
 
+cv::Rect VisualHull::PreparedView::mask_rect() const { return data_ ? data_->roi : cv::Rect(); }
+
 void VisualHull::Integrate(const PreparedView& view) {
   // The summed-area table is made for each hull (1.5 bytes a pixel more per view to keep).
   Carve(*view.data_, MakeSat(*view.data_));

@@ -167,6 +167,10 @@ class VisualHull {
 
  public:
   class PreparedView {
+   public:
+    // The rectangle of the mask's pixels set (MaskRect; empty when none), found in preparing.
+    cv::Rect mask_rect() const;
+
    private:
     friend class VisualHull;
     std::shared_ptr<const ViewData> data_;
