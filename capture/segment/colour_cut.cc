@@ -1,5 +1,6 @@
 #include "capture/segment/colour_cut.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -52,14 +53,16 @@ std::vector<float> Smoothed(const std::vector<float>& histogram) {
 // their samples. (One count added to every bin made the prior ~4096 counts, as much as a small
 // object's own pixels: its rarer colours, the deep shadows on it, then cost it more than they
 // cost the larger backdrop.)
-std::vector<float> Costs(const std::vector<float>& histogram) {
+// Only the bins in `needed` are filled (the others are left 0): a cut reads the costs of its
+// band's colours alone.
+std::vector<float> Costs(const std::vector<float>& histogram, const std::vector<int>& needed) {
   const std::vector<float> smooth = Smoothed(histogram);
   double count = 0.0;
   for (float h : smooth) count += h;
   const double prior = kPriorShare * count / kBins;
   const double total = count + kPriorShare * count;
   std::vector<float> cost(kBins);
-  for (int i = 0; i < kBins; ++i) {
+  for (const int i : needed) {
     cost[static_cast<std::size_t>(i)] =
         static_cast<float>(-std::log((smooth[static_cast<std::size_t>(i)] + prior) / total));
   }
@@ -95,23 +98,29 @@ struct Band {
 constexpr int kBackDx[4] = {-1, -1, 0, 1};
 constexpr int kBackDy[4] = {0, -1, -1, -1};
 
+// 1 / (2 mean) of the squared colour differences of the pairs of neighbours in kBackDx/kBackDy.
+// The sum is of whole numbers, exact in 64 bits (as in the double it was: below 2^53), and each
+// neighbour's pairs are summed along a row with no test per pixel.
 double Beta(const cv::Mat& bgr) {
-  double sum = 0.0;
+  std::int64_t sum = 0;
   std::int64_t count = 0;
+  const int cols = bgr.cols;
+  const auto pairs = [&](const cv::Vec3b* p, const cv::Vec3b* q, int begin, int end) {
+    std::int64_t row_sum = 0;
+    for (int x = begin; x < end; ++x) row_sum += SquaredDistance(p[x], q[x]);
+    sum += row_sum;
+    count += std::max(0, end - begin);
+  };
   for (int y = 0; y < bgr.rows; ++y) {
     const auto* p = bgr.ptr<cv::Vec3b>(y);
-    const auto* up = y > 0 ? bgr.ptr<cv::Vec3b>(y - 1) : nullptr;
-    for (int x = 0; x < bgr.cols; ++x) {
-      for (int k = 0; k < 4; ++k) {
-        const int nx = x + kBackDx[k];
-        if (nx < 0 || nx >= bgr.cols || (kBackDy[k] < 0 && up == nullptr)) continue;
-        const cv::Vec3b& q = kBackDy[k] < 0 ? up[nx] : p[nx];
-        sum += SquaredDistance(p[x], q);
-        ++count;
-      }
-    }
+    pairs(p, p - 1, 1, cols);  // left
+    if (y == 0) continue;
+    const auto* up = bgr.ptr<cv::Vec3b>(y - 1);
+    pairs(p, up - 1, 1, cols);      // up-left
+    pairs(p, up, 0, cols);          // up
+    pairs(p, up + 1, 0, cols - 1);  // up-right
   }
-  return sum > 0.0 ? 1.0 / (2.0 * sum / static_cast<double>(count)) : 0.0;
+  return sum > 0 ? 1.0 / (2.0 * static_cast<double>(sum) / static_cast<double>(count)) : 0.0;
 }
 
 Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& options,
@@ -190,26 +199,40 @@ bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& op
                               ? object_samples
                               : object_samples.clone();
   const std::uint8_t* sample = samples.empty() ? nullptr : samples.ptr<std::uint8_t>(0);
+  // The band's colours (the bins whose costs the cut reads).
+  std::vector<int> band_bins;
+  {
+    std::vector<char> seen(kBins, 0);
+    for (const int pixel : band.pixel) {
+      const std::uint16_t b = bin[pixel];
+      if (!seen[b]) band_bins.push_back(b);
+      seen[b] = 1;
+    }
+  }
+  // The graph's vertices and links, made once: each iteration cuts a copy with its own terminal
+  // weights (a fresh graph made in the same order is the same graph: the links leave the
+  // vertices' weights and the flow as they are, and maxFlow sets up the rest).
+  cv::detail::GCGraph<int> links(static_cast<unsigned>(band.pixel.size()),
+                                 static_cast<unsigned>(2 * band.links.size()));
+  for (std::size_t v = 0; v < band.pixel.size(); ++v) links.addVtx();
+  for (const Band::Link& link : band.links)
+    links.addEdges(link.a, link.b, Fixed(link.weight), Fixed(link.weight));
   for (int iteration = 0; iteration < options.iterations; ++iteration) {
     std::vector<float> object(kBins, 0.0f), backdrop(kBins, 0.0f);
     for (std::size_t i = 0; i < bgr.total(); ++i) {
       const bool as_object = IsObject(label[i]) || (sample != nullptr && sample[i] != 0);
       (as_object ? object : backdrop)[bin[i]] += 1.0f;
     }
-    const std::vector<float> object_cost = Costs(object);
-    const std::vector<float> backdrop_cost = Costs(backdrop);
-    cv::detail::GCGraph<int> graph(static_cast<unsigned>(band.pixel.size()),
-                                   static_cast<unsigned>(2 * band.links.size()));
+    const std::vector<float> object_cost = Costs(object, band_bins);
+    const std::vector<float> backdrop_cost = Costs(backdrop, band_bins);
+    cv::detail::GCGraph<int> graph = links;
     for (std::size_t v = 0; v < band.pixel.size(); ++v) {
       const std::uint16_t b = bin[band.pixel[v]];
-      graph.addVtx();
       // Source = object: cutting a pixel from the source costs its backdrop cost, and its sure
       // object neighbours' links.
       graph.addTermWeights(static_cast<int>(v), Fixed(backdrop_cost[b] + band.to_object[v]),
                            Fixed(object_cost[b] + band.to_backdrop[v]));
     }
-    for (const Band::Link& link : band.links)
-      graph.addEdges(link.a, link.b, Fixed(link.weight), Fixed(link.weight));
     graph.maxFlow();
     bool changed = false;
     for (std::size_t v = 0; v < band.pixel.size(); ++v) {
