@@ -144,19 +144,22 @@ cv::Mat Without(const cv::Mat& candidates, const cv::Mat& bgr,
 cv::Mat ConnectedTo(const cv::Mat& above, const cv::Mat& seeds) {
   cv::Mat components;
   const int count = cv::connectedComponents(above, components, 8, CV_32S);
+  // reached[c]: 255 when component c holds a seed. No branch per pixel: a pixel that is no seed
+  // marks the backdrop's label 0, which is cleared after.
   std::vector<std::uint8_t> reached(static_cast<std::size_t>(count), 0);
   for (int y = 0; y < above.rows; ++y) {
     const int* c = components.ptr<int>(y);
     const auto* s = seeds.ptr<std::uint8_t>(y);
     for (int x = 0; x < above.cols; ++x) {
-      if (s[x] && c[x] > 0) reached[static_cast<std::size_t>(c[x])] = 1;
+      reached[static_cast<std::size_t>(s[x] != 0 ? c[x] : 0)] = 255;
     }
   }
+  reached[0] = 0;
   cv::Mat out(above.size(), CV_8UC1);
   for (int y = 0; y < above.rows; ++y) {
     const int* c = components.ptr<int>(y);
     auto* o = out.ptr<std::uint8_t>(y);
-    for (int x = 0; x < above.cols; ++x) o[x] = reached[static_cast<std::size_t>(c[x])] ? 255 : 0;
+    for (int x = 0; x < above.cols; ++x) o[x] = reached[static_cast<std::size_t>(c[x])];
   }
   return out;
 }
