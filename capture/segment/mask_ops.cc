@@ -113,8 +113,9 @@ MaskEdge EdgeOf(const cv::Mat& mask) {
   return found;
 }
 
-cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels,
-                 const MaskEdge* edge, cv::Point levels_origin) {
+cv::Mat Enlarged(const cv::Mat& mask, int factor, cv::Size full_size, const ImagePart& score,
+                 const ImagePart& levels_part, const MaskEdge* edge) {
+  const cv::Mat& levels = levels_part.values;
   if (factor <= 1 && levels.empty()) return mask;
   // Only around the object (its rectangle and a pixel more, where its edge is). Elsewhere the
   // enlarged mask is 0: for a factor that is a power of two, cv::resize's nearest pixel (the
@@ -126,19 +127,19 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv
   const cv::Mat& gradient = at.edge;
   cv::Mat full;
   if (factor >= 1 && std::has_single_bit(static_cast<unsigned>(factor)) &&
-      score.size() == cv::Size(mask.cols * factor, mask.rows * factor)) {
-    full = cv::Mat::zeros(score.size(), CV_8UC1);
+      full_size == cv::Size(mask.cols * factor, mask.rows * factor)) {
+    full = cv::Mat::zeros(full_size, CV_8UC1);
     if (part.empty()) return full;
     const cv::Rect part_full(part.x * factor, part.y * factor, part.width * factor,
                              part.height * factor);
     cv::Mat enlarged = full(part_full);
     cv::resize(mask(part), enlarged, part_full.size(), 0.0, 0.0, cv::INTER_NEAREST);
   } else {
-    cv::resize(mask, full, score.size(), 0.0, 0.0, cv::INTER_NEAREST);
+    cv::resize(mask, full, full_size, 0.0, 0.0, cv::INTER_NEAREST);
     if (part.empty()) return full;
   }
   const bool one_level = levels.total() == 1;
-  const cv::Rect held = one_level ? cv::Rect() : cv::Rect(levels_origin, levels.size());
+  const cv::Rect held = one_level ? cv::Rect() : cv::Rect(levels_part.origin, levels.size());
   for (int y = part.y; y < part.y + part.height; ++y) {
     const auto* e = gradient.ptr<std::uint8_t>(y - part.y) - part.x;
     const bool row_held = y >= held.y && y < held.y + held.height;
@@ -152,7 +153,8 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv
       if (level < 0.0f) continue;
       for (int dy = 0; dy < factor; ++dy) {
         const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(x) * factor;
-        const auto* s = score.ptr<std::uint8_t>(y * factor + dy) + offset;
+        const auto* s = score.values.ptr<std::uint8_t>(y * factor + dy - score.origin.y) +
+                        (offset - score.origin.x);
         auto* o = full.ptr<std::uint8_t>(y * factor + dy) + offset;
         for (int dx = 0; dx < factor; ++dx) o[dx] = s[dx] >= level ? 255 : 0;
       }

@@ -51,15 +51,22 @@ struct MaskEdge {
 };
 MaskEdge EdgeOf(const cv::Mat& mask);
 
-// A mask of the work size (CV_8UC1, 0/255) enlarged by `factor` to the full size, the edge
-// placed again at full size: every full-size pixel under a work pixel on the mask's edge (a 3x3
-// neighbourhood that holds both values) is object when its `score` (CV_8UC1, full size) is at
-// least the work pixel's level in `levels` (CV_32FC1: 1x1 for one level everywhere, else the
-// work size's levels from `levels_origin` on, a part of it or the whole; a pixel outside has no
-// level); a negative level, or none, keeps the enlarged value. Away from the edge, the work mask
-// holds: specks it dropped and holes it filled stay so. `edge` (may be null): EdgeOf(mask), when
-// the caller has it.
-cv::Mat Enlarged(const cv::Mat& mask, int factor, const cv::Mat& score, const cv::Mat& levels,
-                 const MaskEdge* edge = nullptr, cv::Point levels_origin = {});
+// Values over a part of an image: `values` are the image's pixels from `origin` on; no pixel
+// outside has one.
+struct ImagePart {
+  cv::Mat values;
+  cv::Point origin;
+};
+
+// A mask of the work size (CV_8UC1, 0/255) enlarged by `factor` to `full_size`, the edge placed
+// again at full size: every full-size pixel under a work pixel on the mask's edge (a 3x3
+// neighbourhood that holds both values) is object when its `score` (CV_8UC1, full-size pixels:
+// the whole image, or a part holding every pixel under the edge) is at least the work pixel's
+// level in `levels` (CV_32FC1: 1x1 for one level everywhere, else work-size pixels, the whole or
+// a part; a pixel outside the part has no level); a negative level, or none, keeps the enlarged
+// value. Away from the edge, the work mask holds: specks it dropped and holes it filled stay so.
+// `edge` (may be null): EdgeOf(mask), when the caller has it.
+cv::Mat Enlarged(const cv::Mat& mask, int factor, cv::Size full_size, const ImagePart& score,
+                 const ImagePart& levels, const MaskEdge* edge = nullptr);
 
 }  // namespace revolve::capture

@@ -190,7 +190,8 @@ class PipelineSegmenter final : public Segmenter {
     cv::compare(score_w, *level, mask_w, cv::CMP_GE);
     mask_w = CleanUp(mask_w, roi_w, nullptr, factor);
     if (factor == 1) return mask_w;
-    cv::Mat mask = Enlarged(mask_w, factor, *score, cv::Mat(1, 1, CV_32FC1, cv::Scalar(*level)));
+    cv::Mat mask = Enlarged(mask_w, factor, score->size(), {*score, {}},
+                            {cv::Mat(1, 1, CV_32FC1, cv::Scalar(*level)), {}});
     if (!roi.empty()) mask &= roi;
     return mask;
   }
@@ -230,23 +231,25 @@ class PipelineSegmenter final : public Segmenter {
     if (factor == 1) return mask_w;
     const MaskEdge edge = EdgeOf(mask_w);
     const EdgeLevelPart levels = EdgeLevels(mask_w, scored.score, 1);
-    cv::Mat mask =
-        Enlarged(mask_w, factor, DistanceAroundEdge(bgr, backdrop, shadows, edge, factor),
-                 levels.levels, &edge, levels.part.tl());
+    cv::Mat mask = Enlarged(mask_w, factor, bgr.size(),
+                            DistanceAroundEdge(bgr, backdrop, shadows, edge, factor),
+                            {levels.levels, levels.part.tl()}, &edge);
     if (!roi.empty()) mask &= roi;
     return mask;
   }
 
   // BackdropDistance(bgr, backdrop, shadows) where Enlarged(mask_w, factor, ...) reads it: the
-  // full-size pixels of the work-size mask's edge (`edge`: EdgeOf(mask_w); zero elsewhere; an
-  // empty mask has no edge). The distance is a pixel's own: the same values as over the whole
-  // frame.
-  static cv::Mat DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
-                                    const MaskEdge& mask_edge, int factor) {
-    cv::Mat score = cv::Mat::zeros(bgr.size(), CV_8UC1);
-    if (mask_edge.part.empty()) return score;
+  // full-size pixels of the work-size mask's edge (`edge`: EdgeOf(mask_w)), held over the
+  // full-size pixels of the edge's part (zero where no edge is; an empty mask has no edge and no
+  // part). The distance is a pixel's own: the same values as over the whole frame.
+  static ImagePart DistanceAroundEdge(const cv::Mat& bgr, const cv::Mat& backdrop, bool shadows,
+                                      const MaskEdge& mask_edge, int factor) {
+    if (mask_edge.part.empty()) return {};
     const cv::Rect& part = mask_edge.part;
     const cv::Mat& edge = mask_edge.edge;
+    const cv::Point origin(part.x * factor, part.y * factor);
+    ImagePart held{cv::Mat::zeros(part.height * factor, part.width * factor, CV_8UC1), origin};
+    cv::Mat& score = held.values;
     const bool per_pixel = backdrop.size() == bgr.size();
     for (int y = 0; y < edge.rows; ++y) {
       const std::uint8_t* e = edge.ptr<std::uint8_t>(y);
@@ -265,11 +268,12 @@ class PipelineSegmenter final : public Segmenter {
               bgr.ptr<std::uint8_t>(row) + 3 * static_cast<std::ptrdiff_t>(column),
               per_pixel ? backdrop.ptr<std::uint8_t>(row) + 3 * static_cast<std::ptrdiff_t>(column)
                         : backdrop.ptr<std::uint8_t>(0),
-              per_pixel, shadows, count, score.ptr<std::uint8_t>(row) + column);
+              per_pixel, shadows, count,
+              score.ptr<std::uint8_t>(row - origin.y) + (column - origin.x));
         }
       }
     }
-    return score;
+    return held;
   }
 
   // The clean-up every method ends with (see segmenter.h), at the work size: the radii and areas
