@@ -27,7 +27,7 @@ double ThumbnailScale(int frame_cols) {
 inline std::uint8_t BlockSample(const std::uint16_t* sums, int step, int columns, int rows,
                                 bool whole, float per_sample) {
   int sum = 0;
-  for (int t = 0; t < columns; ++t) sum += sums[t * step];
+  for (std::ptrdiff_t t = 0; t < columns; ++t) sum += sums[t * step];
   if (whole) return cv::saturate_cast<std::uint8_t>(static_cast<float>(sum) * per_sample);
   return columns == 0 ? std::uint8_t{0}
                       : cv::saturate_cast<std::uint8_t>(static_cast<float>(sum) /
