@@ -180,8 +180,11 @@ void BM_Consensus(benchmark::State& state) {
     benchmark::DoNotOptimize(consensus->agreement.data());
   }
 }
-BENCHMARK(BM_Consensus)->Name("Consensus36Views")->ArgName("thesis")->Arg(1)->Unit(
-    benchmark::kMillisecond);
+BENCHMARK(BM_Consensus)
+    ->Name("Consensus36Views")
+    ->ArgName("thesis")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace revolve::reconstruct
