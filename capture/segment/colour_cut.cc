@@ -31,17 +31,23 @@ std::array<std::uint16_t, 256> LevelTable() {
   return table;
 }
 
-// A histogram smoothed by [1 2 1] / 4 along each axis (neighbouring levels share their counts).
+// A histogram smoothed by [1 2 1] / 4 along each axis (neighbouring levels share their counts;
+// the end levels count themselves as their missing neighbour).
 std::vector<float> Smoothed(const std::vector<float>& histogram) {
   std::vector<float> a = histogram, b(kBins);
-  const int strides[3] = {1, kLevels, kLevels * kLevels};
-  for (const int stride : strides) {
-    for (int i = 0; i < kBins; ++i) {
-      const int level = (i / stride) % kLevels;
-      const float left = level > 0 ? a[At(i - stride)] : a[static_cast<std::size_t>(i)];
-      const float right = level + 1 < kLevels ? a[At(i + stride)] : a[static_cast<std::size_t>(i)];
-      b[static_cast<std::size_t>(i)] =
-          0.25f * left + 0.5f * a[static_cast<std::size_t>(i)] + 0.25f * right;
+  // Along the axis of `stride`: the bins as rows of kLevels levels, `stride` apart, starting at
+  // each bin whose level on that axis is 0.
+  for (const int stride : {1, kLevels, kLevels * kLevels}) {
+    for (int first = 0; first < kBins; ++first) {
+      if ((first / stride) % kLevels != 0) continue;
+      const float* in = a.data() + first;
+      float* out = b.data() + first;
+      for (int level = 0; level < kLevels; ++level) {
+        const float here = in[level * stride];
+        const float left = level > 0 ? in[(level - 1) * stride] : here;
+        const float right = level + 1 < kLevels ? in[(level + 1) * stride] : here;
+        out[level * stride] = 0.25f * left + 0.5f * here + 0.25f * right;
+      }
     }
     a.swap(b);
   }
@@ -217,11 +223,26 @@ bool CutByColour(const cv::Mat& bgr, cv::Mat& labels, const ColourCutOptions& op
   for (std::size_t v = 0; v < band.pixel.size(); ++v) links.addVtx();
   for (const Band::Link& link : band.links)
     links.addEdges(link.a, link.b, Fixed(link.weight), Fixed(link.weight));
+  // The colour models' counts: those of the sure pixels (and the samples) once, the band's by its
+  // labels at each iteration. Whole counts, exact in a float (a crop holds fewer than 2^24
+  // pixels): the histograms a count of every pixel at each iteration gave.
+  std::vector<int> sure_object(kBins, 0), sure_backdrop(kBins, 0);
+  const std::size_t pixels = bgr.total();
+  for (std::size_t i = 0; i < pixels; ++i) {
+    if (vertex_of[i] >= 0) continue;
+    const bool as_object = IsObject(label[i]) || (sample != nullptr && sample[i] != 0);
+    ++(as_object ? sure_object : sure_backdrop)[bin[i]];
+  }
   for (int iteration = 0; iteration < options.iterations; ++iteration) {
-    std::vector<float> object(kBins, 0.0f), backdrop(kBins, 0.0f);
-    for (std::size_t i = 0; i < bgr.total(); ++i) {
+    std::vector<int> object_count = sure_object, backdrop_count = sure_backdrop;
+    for (const int i : band.pixel) {
       const bool as_object = IsObject(label[i]) || (sample != nullptr && sample[i] != 0);
-      (as_object ? object : backdrop)[bin[i]] += 1.0f;
+      ++(as_object ? object_count : backdrop_count)[bin[i]];
+    }
+    std::vector<float> object(kBins), backdrop(kBins);
+    for (int b = 0; b < kBins; ++b) {
+      object[At(b)] = static_cast<float>(object_count[At(b)]);
+      backdrop[At(b)] = static_cast<float>(backdrop_count[At(b)]);
     }
     const std::vector<float> object_cost = Costs(object, band_bins);
     const std::vector<float> backdrop_cost = Costs(backdrop, band_bins);

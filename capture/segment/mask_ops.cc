@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstdint>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -161,6 +162,54 @@ cv::Mat Enlarged(const cv::Mat& mask, int factor, cv::Size full_size, const Imag
     }
   }
   return full;
+}
+
+// Filled run by run from each seed not yet reached (a scanline flood fill): the work is that of
+// the pixels reached and the rows beside them, not a labelling of every component.
+cv::Mat ConnectedThrough(const cv::Mat& through, const cv::Mat& seeds) {
+  const int rows = through.rows;
+  const int cols = through.cols;
+  cv::Mat out = cv::Mat::zeros(through.size(), CV_8UC1);
+  struct Run {
+    int y, x0, x1;  // [x0, x1] of row y, filled; the rows beside it not yet looked at
+  };
+  std::vector<Run> pending;
+  // Fills the run of `through` holding (x, y), a pixel of it not filled yet, and queues it.
+  const auto fill_run = [&](int y, int x) {
+    const std::uint8_t* a = through.ptr<std::uint8_t>(y);
+    std::uint8_t* o = out.ptr<std::uint8_t>(y);
+    int x0 = x;
+    int x1 = x;
+    while (x0 > 0 && a[x0 - 1] != 0 && o[x0 - 1] == 0) --x0;
+    while (x1 + 1 < cols && a[x1 + 1] != 0 && o[x1 + 1] == 0) ++x1;
+    std::fill(o + x0, o + x1 + 1, std::uint8_t{255});
+    pending.push_back({y, x0, x1});
+    return x1;
+  };
+  for (int y = 0; y < rows; ++y) {
+    const std::uint8_t* s = seeds.ptr<std::uint8_t>(y);
+    const std::uint8_t* a = through.ptr<std::uint8_t>(y);
+    const std::uint8_t* o = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < cols; ++x) {
+      if (s[x] == 0 || a[x] == 0 || o[x] != 0) continue;
+      fill_run(y, x);
+      while (!pending.empty()) {
+        const Run run = pending.back();
+        pending.pop_back();
+        // 8-connected: the rows above and below, one pixel past each end.
+        for (const int ny : {run.y - 1, run.y + 1}) {
+          if (ny < 0 || ny >= rows) continue;
+          const std::uint8_t* na = through.ptr<std::uint8_t>(ny);
+          const std::uint8_t* no = out.ptr<std::uint8_t>(ny);
+          const int last = std::min(cols - 1, run.x1 + 1);
+          for (int nx = std::max(0, run.x0 - 1); nx <= last; ++nx) {
+            if (na[nx] != 0 && no[nx] == 0) nx = fill_run(ny, nx);
+          }
+        }
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace revolve::capture

@@ -20,6 +20,10 @@ cv::Mat CloseMask(const cv::Mat& mask, int radius_px);
 // order); an all-zero mask when there is none.
 cv::Mat KeepLargestComponent(const cv::Mat& mask);
 
+// The pixels of `through` 8-connected through `through` to a pixel of `seeds` (both CV_8UC1,
+// non-zero set; seeds outside `through` reach nothing): 255 there, 0 elsewhere.
+cv::Mat ConnectedThrough(const cv::Mat& through, const cv::Mat& seeds);
+
 // Sets every background pixel that is not 4-connected to the image border (a hole) to 255.
 // 4-connected background is the complement of 8-connected foreground, so a ring closed only
 // diagonally still counts as closed.

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/segment/backdrop_surface.h"
+#include "capture/segment/graph_cut.h"
 #include "capture/segment/mask_ops.h"
 #include "capture/synthetic/synthetic_camera.h"
 
@@ -210,6 +211,96 @@ TEST(MaskOps, KeepLargestComponentOfNothingIsEmpty) {
   const cv::Mat kept = KeepLargestComponent(empty);
   EXPECT_EQ(kept.size(), empty.size());
   EXPECT_EQ(cv::countNonZero(kept), 0);
+}
+
+// The components of `through` holding a seed, by labelling every component: the definition
+// ConnectedThrough must meet.
+cv::Mat ComponentsHoldingASeed(const cv::Mat& through, const cv::Mat& seeds) {
+  cv::Mat labels;
+  const int count = cv::connectedComponents(through, labels, 8, CV_32S);
+  std::vector<std::uint8_t> seeded(static_cast<std::size_t>(count), 0);
+  for (int y = 0; y < through.rows; ++y) {
+    for (int x = 0; x < through.cols; ++x) {
+      const int label = labels.at<int>(y, x);
+      if (label > 0 && seeds.at<std::uint8_t>(y, x) != 0) seeded[label] = 255;
+    }
+  }
+  cv::Mat out(through.size(), CV_8UC1);
+  for (int y = 0; y < through.rows; ++y) {
+    for (int x = 0; x < through.cols; ++x)
+      out.at<std::uint8_t>(y, x) = seeded[labels.at<int>(y, x)];
+  }
+  return out;
+}
+
+TEST(MaskOps, ConnectedThroughIsTheComponentsHoldingASeed) {
+  // Random speckle at several densities (below, near and above 8-connected percolation, so
+  // components of every shape: spirals, diagonal chains, ones wrapping around others), seeds
+  // scattered in and outside it, on frames from 1 px to wider than high and higher than wide.
+  std::mt19937 random(7);
+  int reached_some = 0;
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(1, 9), cv::Size(9, 1), cv::Size(37, 23),
+                              cv::Size(64, 64), cv::Size(200, 90)}) {
+    for (const double density : {0.3, 0.42, 0.55, 0.7}) {
+      for (const double seed_share : {0.0, 0.002, 0.05}) {
+        cv::Mat through(size, CV_8UC1), seeds(size, CV_8UC1);
+        std::uniform_real_distribution<double> u(0.0, 1.0);
+        for (int y = 0; y < size.height; ++y) {
+          for (int x = 0; x < size.width; ++x) {
+            through.at<std::uint8_t>(y, x) = u(random) < density ? 255 : 0;
+            seeds.at<std::uint8_t>(y, x) = u(random) < seed_share ? 1 : 0;
+          }
+        }
+        const cv::Mat expected = ComponentsHoldingASeed(through, seeds);
+        const cv::Mat got = ConnectedThrough(through, seeds);
+        ASSERT_EQ(got.size(), size);
+        ASSERT_EQ(got.type(), CV_8UC1);
+        EXPECT_EQ(cv::countNonZero(got != expected), 0)
+            << size << " density " << density << " seeds " << seed_share;
+        reached_some += cv::countNonZero(expected) > 0 ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(reached_some, 15);  // most draws with seeds reach something
+  // Diagonal steps connect; a seed on no pixel of `through` reaches nothing.
+  cv::Mat chain = cv::Mat::zeros(5, 5, CV_8UC1);
+  for (int i = 0; i < 5; ++i) chain.at<std::uint8_t>(i, 4 - i) = 255;
+  cv::Mat seed = cv::Mat::zeros(5, 5, CV_8UC1);
+  seed.at<std::uint8_t>(4, 0) = 255;
+  EXPECT_EQ(cv::countNonZero(ConnectedThrough(chain, seed)), 5);
+  seed.at<std::uint8_t>(4, 0) = 0;
+  seed.at<std::uint8_t>(0, 0) = 255;
+  EXPECT_EQ(cv::countNonZero(ConnectedThrough(chain, seed)), 0);
+}
+
+TEST(GraphCut, NoiseScoreIsOpenCvsBlurToTheBit) {
+  // Random levels (every sum of 25 occurs), the extremes, and frames down to one pixel wide or
+  // high, where the repeated edge rows and columns are most of the window.
+  std::mt19937 random(11);
+  std::uniform_int_distribution<int> level(0, 255);
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(1, 7), cv::Size(7, 1), cv::Size(2, 3),
+                              cv::Size(5, 5), cv::Size(33, 17), cv::Size(640, 480)}) {
+    cv::Mat score(size, CV_8UC1);
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) score.at<std::uint8_t>(y, x) = level(random);
+    }
+    for (const cv::Mat& image :
+         {score, cv::Mat(cv::Mat(size, CV_8UC1, cv::Scalar(255))), cv::Mat(score > 128)}) {
+      cv::Mat expected;
+      cv::blur(image, expected, cv::Size(5, 5), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+      const cv::Mat got = NoiseScore(image);
+      ASSERT_EQ(got.type(), CV_8UC1);
+      EXPECT_EQ(cv::countNonZero(got != expected), 0) << size;
+    }
+  }
+  // Every box sum 0..6375 at the middle of a 5 x 5 frame: a window of 25 levels adding up to it.
+  for (int sum = 0; sum <= 25 * 255; ++sum) {
+    cv::Mat image(5, 5, CV_8UC1, cv::Scalar(sum / 25));
+    for (int i = 0; i < sum % 25; ++i) ++image.at<std::uint8_t>(i / 5, i % 5);
+    cv::Mat expected;
+    cv::blur(image, expected, cv::Size(5, 5), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+    ASSERT_EQ(NoiseScore(image).at<std::uint8_t>(2, 2), expected.at<std::uint8_t>(2, 2)) << sum;
+  }
 }
 
 TEST(Segment, EmptySceneGivesAnEmptyMask) {
