@@ -91,20 +91,25 @@ struct OtsuSplit {
 
 // Otsu's threshold over the pixels of `grey` (CV_8UC1) where `roi` is set (empty: all).
 OtsuSplit Otsu(const cv::Mat& grey, const cv::Mat& roi) {
-  std::array<std::int64_t, 256> counts{};
+  // Four counts, pixels in turn, so that a run of one level does not wait on its own increments.
+  std::array<std::array<std::int64_t, 256>, 4> counts{};
   for (int y = 0; y < grey.rows; ++y) {
     const auto* g = grey.ptr<std::uint8_t>(y);
-    if (roi.empty()) {
-      for (int x = 0; x < grey.cols; ++x) ++counts[g[x]];
-      continue;
+    const auto* r = roi.empty() ? nullptr : roi.ptr<std::uint8_t>(y);
+    int x = 0;
+    if (r == nullptr) {
+      for (; x + 4 <= grey.cols; x += 4) {
+        for (int k = 0; k < 4; ++k) ++counts[k][g[x + k]];
+      }
     }
-    const auto* r = roi.ptr<std::uint8_t>(y);
-    for (int x = 0; x < grey.cols; ++x) {
-      if (r[x]) ++counts[g[x]];
+    for (; x < grey.cols; ++x) {
+      if (r == nullptr || r[x] != 0) ++counts[0][g[x]];
     }
   }
   std::array<double, 256> histogram{};
-  for (int i = 0; i < 256; ++i) histogram[i] = static_cast<double>(counts[i]);
+  for (int i = 0; i < 256; ++i) {
+    histogram[i] = static_cast<double>(counts[0][i] + counts[1][i] + counts[2][i] + counts[3][i]);
+  }
   double total = 0.0, sum = 0.0;
   for (int i = 0; i < 256; ++i) {
     total += histogram[i];
