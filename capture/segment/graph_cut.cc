@@ -61,14 +61,21 @@ cv::Mat ReduceTrimap(const cv::Mat& trimap, cv::Size size, int radius_px) {
 // except those of `kept` (CV_8UC1, may be empty: what the noise hysteresis brought in): the
 // object is what its sure core reaches. A cloth's fold or a stand far from the object is not cut
 // (the max-flow's slow case: a wide region both colour models explain alike).
+// Done within the rectangle of the labels other than GC_BGD, which holds every sure object pixel
+// and every pixel it may change: OpenCV's 3x3 distance is a whole number of fixed-point steps, the
+// cheapest path's from the nearest sure object pixel, and such a path stays within the rectangle
+// of its two ends. So each distance there is the whole frame's.
 void LimitReach(cv::Mat& labels, const cv::Mat& kept, double reach_px) {
-  const cv::Mat sure_object = labels == cv::GC_FGD;
-  if (reach_px <= 0.0 || cv::countNonZero(sure_object) == 0) return;
+  if (reach_px <= 0.0) return;
+  const cv::Rect part = MaskRect(cv::Mat(labels != cv::GC_BGD));
+  if (part.empty()) return;
+  const cv::Mat sure_object = labels(part) == cv::GC_FGD;
+  if (cv::countNonZero(sure_object) == 0) return;
   cv::Mat distance;
   cv::distanceTransform(~sure_object, distance, cv::DIST_L2, 3);
   cv::Mat beyond = distance > reach_px;
-  if (!kept.empty()) beyond &= ~kept;
-  labels.setTo(cv::GC_BGD, beyond);
+  if (!kept.empty()) beyond &= ~kept(part);
+  labels(part).setTo(cv::GC_BGD, beyond);
 }
 
 constexpr int kColourLevels = 16;

@@ -656,16 +656,22 @@ cv::Mat BackdropDistance(const cv::Mat& bgr, const cv::Mat& backdrop_bgr, bool s
 }
 
 cv::Scalar EstimateBackdropColour(const cv::Mat& image, const cv::Mat& roi) {
-  std::array<std::vector<std::uint8_t>, 3> channels;
-  for (const cv::Point& p : RectOutline(RoiBox(image.size(), roi))) {
+  // Each channel's median over the outline (the level at index n / 2 in order) from its counts.
+  std::array<std::array<int, 256>, 3> counts{};
+  const std::vector<cv::Point> outline = RectOutline(RoiBox(image.size(), roi));
+  for (const cv::Point& p : outline) {
     const cv::Vec3b& c = image.at<cv::Vec3b>(p);
-    for (int k = 0; k < 3; ++k) channels[k].push_back(c[k]);
+    for (int k = 0; k < 3; ++k) ++counts[k][c[k]];
   }
   cv::Scalar out;
+  const std::size_t middle = outline.size() / 2;
   for (int c = 0; c < 3; ++c) {
-    auto& v = channels[c];
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    out[c] = v[v.size() / 2];
+    std::size_t below = 0;
+    int level = 0;
+    while (level < 255 && below + static_cast<std::size_t>(counts[c][level]) <= middle) {
+      below += static_cast<std::size_t>(counts[c][level++]);
+    }
+    out[c] = level;
   }
   return out;
 }

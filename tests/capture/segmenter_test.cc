@@ -303,6 +303,34 @@ TEST(GraphCut, NoiseScoreIsOpenCvsBlurToTheBit) {
   }
 }
 
+// The graph cut's reach limit measures distances within the rectangle of the labels it may
+// change, which holds every sure object pixel: OpenCV's 3x3 distance must be the same there as
+// over the whole frame (it is a whole number of fixed-point steps along the cheapest path, which
+// stays within the rectangle of its ends).
+TEST(GraphCut, DistanceWithinARectangleHoldingEverySourceIsTheWholeFrames) {
+  std::mt19937 random(5);
+  for (int trial = 0; trial < 40; ++trial) {
+    const cv::Size size(40 + trial * 7 % 200, 30 + trial * 13 % 150);
+    cv::Mat sources(size, CV_8UC1, cv::Scalar(255));  // zero: a source
+    std::uniform_int_distribution<int> x(size.width / 4, size.width * 3 / 4);
+    std::uniform_int_distribution<int> y(size.height / 4, size.height * 3 / 4);
+    for (int i = 0; i < 1 + trial % 9; ++i) {
+      cv::circle(sources, {x(random), y(random)}, trial % 5, cv::Scalar(0), cv::FILLED);
+    }
+    cv::Mat whole;
+    cv::distanceTransform(sources, whole, cv::DIST_L2, 3);
+    const cv::Rect held = cv::boundingRect(sources == 0);
+    for (const int margin : {0, 1, 6}) {
+      const cv::Rect part = cv::Rect(held.x - margin, held.y - margin, held.width + 2 * margin,
+                                     held.height + 2 * margin) &
+                            cv::Rect(0, 0, size.width, size.height);
+      cv::Mat within;
+      cv::distanceTransform(sources(part), within, cv::DIST_L2, 3);
+      EXPECT_EQ(cv::countNonZero(within != whole(part)), 0) << "trial " << trial;
+    }
+  }
+}
+
 TEST(Segment, EmptySceneGivesAnEmptyMask) {
   cv::Mat frame(240, 320, CV_8UC3, cv::Scalar::all(20));
   cv::Mat noise(frame.size(), CV_8UC3);
