@@ -111,10 +111,15 @@ double Beta(const cv::Mat& bgr) {
   std::int64_t sum = 0;
   std::int64_t count = 0;
   const int cols = bgr.cols;
+  // Summed in 32 bits over stretches of kStretch pairs (each at most 3 * 255^2), then in 64.
+  constexpr int kStretch = 8192;
   const auto pairs = [&](const cv::Vec3b* p, const cv::Vec3b* q, int begin, int end) {
-    std::int64_t row_sum = 0;
-    for (int x = begin; x < end; ++x) row_sum += SquaredDistance(p[x], q[x]);
-    sum += row_sum;
+    for (int from = begin; from < end; from += kStretch) {
+      const int to = std::min(end, from + kStretch);
+      std::int32_t stretch_sum = 0;
+      for (int x = from; x < to; ++x) stretch_sum += SquaredDistance(p[x], q[x]);
+      sum += stretch_sum;
+    }
     count += std::max(0, end - begin);
   };
   for (int y = 0; y < bgr.rows; ++y) {
@@ -146,10 +151,24 @@ Band BandOf(const cv::Mat& bgr, const cv::Mat& labels, const ColourCutOptions& o
   }
   band.to_object.assign(band.pixel.size(), 0.0f);
   band.to_backdrop.assign(band.pixel.size(), 0.0f);
+  // The pixels with a link: a vertex, or a pixel one of whose neighbours in kBackDx/kBackDy is
+  // (the others add nothing; those are visited in the same raster order).
+  const int cols = bgr.cols;
+  std::vector<std::uint8_t> linked(static_cast<std::size_t>(cols));
   for (int y = 0; y < bgr.rows; ++y) {
     const auto* p = bgr.ptr<cv::Vec3b>(y);
     const auto* l = labels.ptr<std::uint8_t>(y);
-    for (int x = 0; x < bgr.cols; ++x) {
+    const int* here = vertex_of.data() + static_cast<std::ptrdiff_t>(y) * cols;
+    const int* up = y > 0 ? here - cols : nullptr;
+    for (int x = 0; x < cols; ++x) {
+      bool any = here[x] >= 0 || (x > 0 && here[x - 1] >= 0);
+      if (up != nullptr) {
+        any = any || (x > 0 && up[x - 1] >= 0) || up[x] >= 0 || (x + 1 < cols && up[x + 1] >= 0);
+      }
+      linked[static_cast<std::size_t>(x)] = any ? 1 : 0;
+    }
+    for (int x = 0; x < cols; ++x) {
+      if (linked[static_cast<std::size_t>(x)] == 0) continue;
       const int v = vertex_of[At(y * bgr.cols + x)];
       for (int k = 0; k < 4; ++k) {
         const int nx = x + kBackDx[k], ny = y + kBackDy[k];
