@@ -306,17 +306,15 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
                        const cv::Mat& roi, const GraphCutOptions& options,
                        const cv::Mat& noise_score) {
   Trimap trimap;
-  const int rows = score.rows;
-  const int cols = score.cols;
-  const int ring =
-      std::max(1, static_cast<int>(std::lround(options.border_fraction * std::min(cols, rows))));
-  // The border ring: the frame less its inside (every pixel when the frame is too small for one).
-  const bool has_inside = cols > 2 * ring && rows > 2 * ring;
-  const cv::Rect inside =
-      has_inside ? cv::Rect(ring, ring, cols - 2 * ring, rows - 2 * ring) : cv::Rect();
-  const auto in_ring = [&](const cv::Mat& mask) {
-    return cv::countNonZero(mask) - (has_inside ? cv::countNonZero(mask(inside)) : 0);
-  };
+  cv::Mat& labels = trimap.labels;
+  labels = cv::Mat(score.size(), CV_8UC1, cv::Scalar(cv::GC_PR_BGD));
+  labels.setTo(cv::GC_PR_FGD, score > ProbableLevel(levels));
+  const int ring = std::max(
+      1, static_cast<int>(std::lround(options.border_fraction * std::min(score.cols, score.rows))));
+  cv::Mat border(score.size(), CV_8UC1, cv::Scalar(255));
+  if (score.cols > 2 * ring && score.rows > 2 * ring) {
+    border(cv::Rect(ring, ring, score.cols - 2 * ring, score.rows - 2 * ring)).setTo(0);
+  }
   const bool hysteresis = UsesNoiseHysteresis(levels);
   const cv::Mat above_noise =
       hysteresis ? cv::Mat((noise_score.empty() ? NoiseScore(score) : noise_score) > levels.noise)
@@ -329,51 +327,27 @@ Trimap TrimapFromScore(const cv::Mat& bgr, const cv::Mat& score, const ScoreLeve
   // (The object's body only where something rises above the noise on the frame's edge: most
   // objects stand clear of it.)
   std::vector<std::uint8_t> edge_colours;
-  if (hysteresis && in_ring(above_noise) > 0) {
-    cv::Mat border(score.size(), CV_8UC1, cv::Scalar(255));
-    if (has_inside) border(inside).setTo(0);
-    edge_colours =
-        EdgeColours(bgr, (border & above_noise) & ~Body(above_object), cv::countNonZero(border));
+  if (hysteresis) {
+    const cv::Mat noise_on_edge = border & above_noise;
+    if (cv::countNonZero(noise_on_edge) > 0) {
+      edge_colours =
+          EdgeColours(bgr, noise_on_edge & ~Body(above_object), cv::countNonZero(border));
+    }
   }
   const cv::Mat above = Without(above_object, bgr, edge_colours);
   const cv::Mat sure_object = Eroded(above, 2);
-  cv::Mat brought;
-  const cv::Mat backdrop_for_sure =
-      hysteresis ? Eroded(~above_noise, 2) : Eroded(score <= levels.backdrop, 2);
   if (hysteresis) {
-    brought = Without(ConnectedThrough(above_noise, sure_object), bgr, edge_colours);
-    trimap.kept = cv::Mat(score.size(), CV_8UC1);
+    const cv::Mat brought = Without(ConnectedThrough(above_noise, sure_object), bgr, edge_colours);
+    labels.setTo(cv::GC_PR_FGD, brought);
+    labels.setTo(cv::GC_BGD, Eroded(~above_noise, 2));
+    trimap.kept = brought & ~sure_object;
+  } else {
+    labels.setTo(cv::GC_BGD, Eroded(score <= levels.backdrop, 2));
   }
-  // The labels in one pass, each pixel's as the rules set it in turn: probable object above the
-  // probable level, or brought in; backdrop for sure; object for sure; backdrop for sure on the
-  // ring where not above the object level, and outside the region of interest. Kept: brought in,
-  // not object for sure, and probable object in the end.
-  const double probable = ProbableLevel(levels);
-  cv::Mat& labels = trimap.labels;
-  labels = cv::Mat(score.size(), CV_8UC1);
-  for (int y = 0; y < rows; ++y) {
-    const auto* s = score.ptr<std::uint8_t>(y);
-    const auto* b = hysteresis ? brought.ptr<std::uint8_t>(y) : nullptr;
-    const auto* d = backdrop_for_sure.ptr<std::uint8_t>(y);
-    const auto* f = sure_object.ptr<std::uint8_t>(y);
-    const auto* a = above.ptr<std::uint8_t>(y);
-    const auto* r = roi.empty() ? nullptr : roi.ptr<std::uint8_t>(y);
-    auto* l = labels.ptr<std::uint8_t>(y);
-    auto* k = hysteresis ? trimap.kept.ptr<std::uint8_t>(y) : nullptr;
-    const bool ring_row = !has_inside || y < ring || y >= rows - ring;
-    for (int x = 0; x < cols; ++x) {
-      std::uint8_t label = s[x] > probable ? cv::GC_PR_FGD : cv::GC_PR_BGD;
-      if (b != nullptr && b[x] != 0) label = cv::GC_PR_FGD;
-      if (d[x] != 0) label = cv::GC_BGD;
-      if (f[x] != 0) label = cv::GC_FGD;
-      if ((ring_row || x < ring || x >= cols - ring) && a[x] == 0) label = cv::GC_BGD;
-      if (r != nullptr && r[x] == 0) label = cv::GC_BGD;
-      l[x] = label;
-      if (k != nullptr) {
-        k[x] = b[x] != 0 && f[x] == 0 && label == cv::GC_PR_FGD ? 255 : 0;
-      }
-    }
-  }
+  labels.setTo(cv::GC_FGD, sure_object);
+  labels.setTo(cv::GC_BGD, border & ~above);
+  if (!roi.empty()) labels.setTo(cv::GC_BGD, roi == 0);
+  if (!trimap.kept.empty()) trimap.kept &= labels == cv::GC_PR_FGD;
   return trimap;
 }
 
