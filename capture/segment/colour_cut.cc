@@ -37,12 +37,13 @@ std::vector<float> Smoothed(const std::vector<float>& histogram) {
   std::vector<float> a = histogram, b(kBins);
   // Along the axis of `stride`: the bins as rows of kLevels levels, `stride` apart, starting at
   // each bin whose level on that axis is 0.
-  for (const int stride : {1, kLevels, kLevels * kLevels}) {
-    for (int first = 0; first < kBins; ++first) {
+  for (const std::ptrdiff_t stride :
+       {std::ptrdiff_t{1}, std::ptrdiff_t{kLevels}, std::ptrdiff_t{kLevels} * kLevels}) {
+    for (std::ptrdiff_t first = 0; first < kBins; ++first) {
       if ((first / stride) % kLevels != 0) continue;
       const float* in = a.data() + first;
       float* out = b.data() + first;
-      for (int level = 0; level < kLevels; ++level) {
+      for (std::ptrdiff_t level = 0; level < kLevels; ++level) {
         const float here = in[level * stride];
         const float left = level > 0 ? in[(level - 1) * stride] : here;
         const float right = level + 1 < kLevels ? in[(level + 1) * stride] : here;
