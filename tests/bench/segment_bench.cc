@@ -1,5 +1,6 @@
 // Segmentation of one 1280x960 frame on one core (issue 17's bars: <= 10 ms for the live
-// methods, <= 60 ms with the graph-cut refinement); 640x480 for comparison.
+// methods, <= 60 ms with the graph-cut refinement); 640x480 for comparison. And SegmentSet: a
+// whole set of 36 photos as `reconstruct --images` segments it (SetPhotos, below), on one core.
 // Run: taskset -c 0 build/tests/bench/segment_bench The frame is a real photograph
 // (shared/data templeSparseRing view 1: plaster on a dark, uneven cloth stand) scaled up to
 // 1280x960; without the shared data, a drawn frame of the same kind.
