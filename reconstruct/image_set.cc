@@ -338,6 +338,7 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
   result.kind = cut_out      ? ImageKind::kCutOut
                 : silhouette ? ImageKind::kSilhouette
                              : ImageKind::kPhoto;
+  bool segmented_by_caller = false;
   if (silhouette) {
     image->mask = std::move(*silhouette);
   } else {
@@ -350,7 +351,9 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
     if (cut_out) {
       image->mask = alpha >= kCutOutMinAlpha;
     } else if (!options.segment_photos) {
-      return result;
+      if (options.segment_photo) image->mask = options.segment_photo(index, image->image);
+      if (image->mask.empty()) return result;
+      segmented_by_caller = true;
     } else {
       image->mask = SegmentPhoto(image->image, options.segmentation);
     }
@@ -360,7 +363,8 @@ DecodedImage DecodeSetImage(std::size_t index, SetImage* image, const ImageSetOp
       image->image_origin = window.tl();
     }
   }
-  result.empty_mask = cv::countNonZero(image->mask) == 0;
+  // A mask made by segment_photo may be empty: the caller judges it.
+  result.empty_mask = !segmented_by_caller && cv::countNonZero(image->mask) == 0;
   return result;
 }
 

@@ -64,6 +64,11 @@ struct ImageSetOptions {
   // Called with each photo as decoded (BGR, whole), on the thread that decoded it, before it is
   // cut to its window; `index` is its place in ImageSet::images. May be empty.
   std::function<void(std::size_t index, const cv::Mat& photo)> on_photo;
+  // Without segment_photos: called after on_photo with each photo that is not cut out, to
+  // segment it where it was decoded. It returns the photo's mask (CV_8UC1 0/255 of its size; an
+  // empty mask is not an error here), which the photo then keeps and is cut to the window of as
+  // frame_margin_px says; or an empty Mat: the photo stays whole, without a mask. May be empty.
+  std::function<cv::Mat(std::size_t index, const cv::Mat& photo)> segment_photo;
 };
 
 enum class ImageKind { kSilhouette, kPhoto, kCutOut };

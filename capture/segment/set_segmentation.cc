@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <mutex>
 #include <optional>
 
 #include <fmt/format.h>
@@ -24,6 +25,9 @@ constexpr double kStillOutline = 0.9;
 constexpr double kStillGain = 0.1;
 constexpr int kMinStillFrames = 4;
 constexpr int kLearnMarginPx = 4;
+// FrameByFrameSegmentation (auto): a frame whose own outline is this even is cut to its window
+// at once (the set will most likely be cut by graphcut); a less even one is kept whole.
+constexpr double kLikelyEvenShare = 0.95;
 constexpr double kMaxObjectShare = 0.6;
 constexpr std::size_t kMinViewsForAreaCheck = 3;
 constexpr double kMinAreaShare = 0.2;
@@ -138,44 +142,44 @@ Expected<std::vector<cv::Mat>> SegmentAll(const std::vector<cv::Mat>& frames,
   return masks;
 }
 
-}  // namespace
+// What the survey finds of one frame on its own (SurveyFrame).
+struct FrameOutline {
+  std::vector<std::array<std::uint8_t, 3>> colours;  // at the outline points, in their order
+  std::optional<BackdropSurface> surface;            // fitted to the whole outline
+  std::size_t uniform = 0;  // colours within kStillLevels of the surface (when one fits)
+};
 
-BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<FrameFacts>* facts) {
+// A frame's outline colours at `points`, and its count of them within kStillLevels of the smooth
+// surface fitted to its outline (even light, light from one side and vignetting are even; a
+// cloth's folds and texture are not). Where no surface fits, CombineOutlines counts them against
+// the set's median colour.
+FrameOutline SurveyFrame(const cv::Mat& frame, const std::vector<cv::Point>& points) {
+  FrameOutline outline;
+  outline.colours.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const cv::Vec3b& c = frame.at<cv::Vec3b>(points[i]);
+    outline.colours[i] = {c[0], c[1], c[2]};
+  }
+  outline.surface = BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, frame.cols, frame.rows));
+  if (!outline.surface) return outline;
+  for (const cv::Point& p : points) {
+    const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
+    const cv::Vec3d expected = outline.surface->At(p.x, p.y);
+    double worst = 0.0;
+    for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - expected[k]));
+    outline.uniform += worst <= kStillLevels;
+  }
+  return outline;
+}
+
+// The set's survey from its frames' outlines (each of `point_count` colours).
+BackdropSurvey CombineOutlines(const std::vector<FrameOutline>& outlines, std::size_t point_count) {
   BackdropSurvey survey;
-  const cv::Size size = frames.front().size();
-  const std::vector<cv::Point> points = OutlinePoints(size, 2);
-  const std::size_t frame_count = frames.size();
-  // Each frame on all cores: its outline's colours into their slots ([point][frame][channel]),
-  // and its count of outline points within kStillLevels of the smooth surface fitted to its
-  // outline (even light, light from one side and vignetting are even; a cloth's folds and
-  // texture are not), or, where no surface fits, of the set's median colour (counted below).
-  std::vector<std::array<std::uint8_t, 3>> values(points.size() * frame_count);
-  std::vector<std::size_t> uniform_in(frame_count, 0);
-  std::vector<char> fitted(frame_count, 0);
-  if (facts != nullptr) facts->assign(frame_count, FrameFacts{});
-  tbb::parallel_for(std::size_t{0}, frame_count, [&](std::size_t f) {
-    const cv::Mat& frame = frames[f];
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const cv::Vec3b& c = frame.at<cv::Vec3b>(points[i]);
-      values[i * frame_count + f] = {c[0], c[1], c[2]};
-    }
-    const std::optional<BackdropSurface> surface =
-        BackdropSurface::FitToOutline(frame, cv::Rect(0, 0, size.width, size.height));
-    if (facts != nullptr) (*facts)[f].whole_outline = surface;
-    if (!surface) return;
-    fitted[f] = 1;
-    for (const cv::Point& p : points) {
-      const cv::Vec3b& c = frame.at<cv::Vec3b>(p);
-      const cv::Vec3d expected = surface->At(p.x, p.y);
-      double worst = 0.0;
-      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - expected[k]));
-      uniform_in[f] += worst <= kStillLevels;
-    }
-  });
+  const std::size_t frame_count = outlines.size();
   // Still: a point's colour within kStillLevels of its median across the frames (with 3 frames
   // or more). The points on all cores in blocks; whole-number counts, summed in block order.
   constexpr std::size_t kBlock = 256;
-  const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
+  const std::size_t blocks = (point_count + kBlock - 1) / kBlock;
   std::vector<std::array<std::array<std::size_t, 256>, 3>> histograms(blocks);
   std::vector<std::size_t> still_in(blocks, 0);
   tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t block) {
@@ -183,28 +187,28 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<Fr
     for (auto& channel : histogram) channel.fill(0);
     std::array<std::vector<std::uint8_t>, 3> across;
     for (auto& v : across) v.resize(frame_count);
-    const std::size_t end = std::min(points.size(), (block + 1) * kBlock);
+    const std::size_t end = std::min(point_count, (block + 1) * kBlock);
     for (std::size_t i = block * kBlock; i < end; ++i) {
-      const std::array<std::uint8_t, 3>* colours = values.data() + i * frame_count;
       for (std::size_t f = 0; f < frame_count; ++f) {
+        const std::array<std::uint8_t, 3>& colour = outlines[f].colours[i];
         for (int k = 0; k < 3; ++k) {
-          across[k][f] = colours[f][k];
-          ++histogram[k][colours[f][k]];
+          across[k][f] = colour[k];
+          ++histogram[k][colour[k]];
         }
       }
       if (frame_count < 3) continue;
       std::array<int, 3> median{};
       for (int k = 0; k < 3; ++k) median[k] = Median(across[k]);
       for (std::size_t f = 0; f < frame_count; ++f) {
+        const std::array<std::uint8_t, 3>& colour = outlines[f].colours[i];
         int worst = 0;
-        for (int k = 0; k < 3; ++k)
-          worst = std::max(worst, std::abs(int(colours[f][k]) - median[k]));
+        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(int(colour[k]) - median[k]));
         still_in[block] += worst <= kStillLevels;
       }
     }
   });
   // The median of every outline colour (Median's: the value at index n / 2 in order).
-  const std::size_t samples = points.size() * frame_count;
+  const std::size_t samples = point_count * frame_count;
   for (int k = 0; k < 3; ++k) {
     std::size_t below = 0;
     for (int level = 0; level < 256; ++level) {
@@ -216,16 +220,14 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<Fr
     }
   }
   std::size_t uniform = 0;
-  for (std::size_t f = 0; f < frame_count; ++f) {
-    if (!fitted[f]) {
-      for (std::size_t i = 0; i < points.size(); ++i) {
-        const std::array<std::uint8_t, 3>& c = values[i * frame_count + f];
-        double worst = 0.0;
-        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - survey.bgr[k]));
-        uniform_in[f] += worst <= kStillLevels;
-      }
+  for (const FrameOutline& outline : outlines) {
+    uniform += outline.uniform;
+    if (outline.surface) continue;
+    for (const std::array<std::uint8_t, 3>& c : outline.colours) {
+      double worst = 0.0;
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(c[k] - survey.bgr[k]));
+      uniform += worst <= kStillLevels;
     }
-    uniform += uniform_in[f];
   }
   std::size_t still = 0;
   for (const std::size_t count : still_in) still += count;
@@ -240,6 +242,57 @@ BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<Fr
                 : survey.luma > kLightLuma       ? "light"
                                                  : "grey";
   return survey;
+}
+
+// The method SegmentImageSet uses, and why, from result.survey (see SegmentImageSet).
+void PickMethod(const SegmentOptions& options, std::size_t frame_count, SetSegmentation& result) {
+  const BackdropSurvey& survey = result.survey;
+  result.method = options.method;
+  result.reason = "given";
+  if (options.method != "auto") return;
+  const std::string seen = fmt::format(
+      "a {} backdrop (outline median B G R {:.0f} {:.0f} {:.0f}, luma {:.0f}, chroma {:.0f}); "
+      "{:.0f} % of the outline keeps its colour across the frames, {:.0f} % is within 12 "
+      "levels of a smooth fit to its frame's outline",
+      survey.kind, survey.bgr[0], survey.bgr[1], survey.bgr[2], survey.luma, survey.chroma,
+      100.0 * survey.outline_stillness, 100.0 * survey.outline_uniformity);
+  if (survey.kind == "coloured") {
+    result.method = "chroma";
+    result.reason = seen + ": a coloured backdrop, keyed out by its chroma";
+  } else if (BackdropWorthLearning(survey, frame_count)) {
+    result.method = "background";
+    result.reason = seen +
+                    ": the camera stands still, so the backdrop is learned from the "
+                    "sequence (per-pixel median of the frames where graphcut saw no "
+                    "object) and the difference refined by a graph cut";
+  } else {
+    result.method = "graphcut";
+    result.reason =
+        seen + ": " +
+        (survey.outline_stillness >= kStillOutline ? "an even backdrop" : "the camera moves") +
+        ", so each frame is cut against the backdrop's colour (graph cut seeded by "
+        "the colour distance)";
+  }
+}
+
+// Each mask's problem (ProblemOf, then FlagSmallMasks).
+void JudgeMasks(SetSegmentation& result) {
+  result.problems.clear();
+  for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));
+  FlagSmallMasks(result.masks, result.problems);
+}
+}  // namespace
+
+BackdropSurvey SurveyBackdrop(const std::vector<cv::Mat>& frames, std::vector<FrameFacts>* facts) {
+  const std::vector<cv::Point> points = OutlinePoints(frames.front().size(), 2);
+  std::vector<FrameOutline> outlines(frames.size());
+  tbb::parallel_for(std::size_t{0}, frames.size(),
+                    [&](std::size_t f) { outlines[f] = SurveyFrame(frames[f], points); });
+  if (facts != nullptr) {
+    facts->assign(frames.size(), FrameFacts{});
+    for (std::size_t f = 0; f < frames.size(); ++f) (*facts)[f].whole_outline = outlines[f].surface;
+  }
+  return CombineOutlines(outlines, points.size());
 }
 
 bool BackdropWorthLearning(const BackdropSurvey& survey, std::size_t frames) {
@@ -280,7 +333,8 @@ cv::Mat LearnBackdrop(const std::vector<cv::Mat>& frames, const std::vector<cv::
 }
 
 Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
-                                          const SegmentOptions& options) {
+                                          const SegmentOptions& options,
+                                          const std::vector<cv::Mat>* graphcut_masks) {
   if (frames.empty()) return MakeError(ErrorCode::kBadInput, "segmentation: no image");
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (frames[i].type() != CV_8UC3 || frames[i].size() != frames.front().size()) {
@@ -295,53 +349,139 @@ Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
   SetSegmentation result;
   std::vector<FrameFacts> facts;
   result.survey = SurveyBackdrop(frames, &facts);
-  const BackdropSurvey& survey = result.survey;
-  const bool still = BackdropWorthLearning(survey, frames.size());
+  PickMethod(options, frames.size(), result);
   SegmentOptions run = options;
-  result.method = options.method;
-  result.reason = "given";
-  if (options.method == "auto") {
-    const std::string seen = fmt::format(
-        "a {} backdrop (outline median B G R {:.0f} {:.0f} {:.0f}, luma {:.0f}, chroma {:.0f}); "
-        "{:.0f} % of the outline keeps its colour across the frames, {:.0f} % is within 12 "
-        "levels of a smooth fit to its frame's outline",
-        survey.kind, survey.bgr[0], survey.bgr[1], survey.bgr[2], survey.luma, survey.chroma,
-        100.0 * survey.outline_stillness, 100.0 * survey.outline_uniformity);
-    if (survey.kind == "coloured") {
-      result.method = "chroma";
-      result.reason = seen + ": a coloured backdrop, keyed out by its chroma";
-    } else if (still) {
-      result.method = "background";
-      result.reason = seen +
-                      ": the camera stands still, so the backdrop is learned from the "
-                      "sequence (per-pixel median of the frames where graphcut saw no "
-                      "object) and the difference refined by a graph cut";
-    } else {
-      result.method = "graphcut";
-      result.reason =
-          seen + ": " +
-          (survey.outline_stillness >= kStillOutline ? "an even backdrop" : "the camera moves") +
-          ", so each frame is cut against the backdrop's colour (graph cut seeded by "
-          "the colour distance)";
-    }
-  }
   run.method = result.method;
   Expected<cv::Mat> background = ReadBackground(options, frames.front().size());
   if (!background) return std::unexpected(background.error());
   if (run.method == "background" && background->empty()) {
     // No frame of the empty scene: learn it from graphcut's masks.
-    SegmentOptions first = run;
-    first.method = "graphcut";
-    Expected<std::vector<cv::Mat>> rough = SegmentAll(frames, first, cv::Mat(), facts);
-    if (!rough) return std::unexpected(rough.error());
-    *background = LearnBackdrop(frames, *rough, kLearnMarginPx, survey.bgr);
+    Expected<std::vector<cv::Mat>> rough = std::vector<cv::Mat>();
+    if (graphcut_masks != nullptr && graphcut_masks->size() == frames.size()) {
+      *rough = *graphcut_masks;
+    } else {
+      SegmentOptions first = run;
+      first.method = "graphcut";
+      rough = SegmentAll(frames, first, cv::Mat(), facts);
+      if (!rough) return std::unexpected(rough.error());
+    }
+    *background = LearnBackdrop(frames, *rough, kLearnMarginPx, result.survey.bgr);
     if (options.method == "auto") run.refine = true;
   }
   Expected<std::vector<cv::Mat>> masks = SegmentAll(frames, run, *background, facts);
   if (!masks) return std::unexpected(masks.error());
   result.masks = std::move(*masks);
-  for (const cv::Mat& mask : result.masks) result.problems.push_back(ProblemOf(mask));
-  FlagSmallMasks(result.masks, result.problems);
+  JudgeMasks(result);
+  return result;
+}
+
+// ---- FrameByFrameSegmentation ------------------------------------------------------------------
+
+struct FrameByFrameSegmentation::State {
+  // What was found of one frame.
+  struct Frame {
+    bool added = false;
+    bool usable = false;  // 8-bit BGR of the first frame's size
+    bool cut = false;     // by graphcut: `mask` is its mask or error
+    FrameOutline outline;
+    Expected<cv::Mat> mask = cv::Mat();
+  };
+  SegmentOptions options;
+  std::unique_ptr<Segmenter> graphcut;  // null: no frame is cut as it comes
+  std::mutex mutex;                     // guards frames and size
+  std::vector<Frame> frames;
+  std::optional<cv::Size> size;
+};
+
+FrameByFrameSegmentation::FrameByFrameSegmentation() = default;
+FrameByFrameSegmentation::~FrameByFrameSegmentation() = default;
+FrameByFrameSegmentation::FrameByFrameSegmentation(FrameByFrameSegmentation&&) noexcept = default;
+FrameByFrameSegmentation& FrameByFrameSegmentation::operator=(FrameByFrameSegmentation&&) noexcept =
+    default;
+
+Expected<FrameByFrameSegmentation> FrameByFrameSegmentation::Create(const SegmentOptions& options) {
+  if (Expected<std::unique_ptr<Segmenter>> check = CreateSegmenter(options); !check) {
+    return std::unexpected(check.error());
+  }
+  FrameByFrameSegmentation made;
+  made.state_ = std::make_unique<State>();
+  made.state_->options = options;
+  // graphcut's masks are the set's when it is asked for, and when auto picks it; auto learns the
+  // backdrop from them when it picks background. A background file changes both.
+  if ((options.method == "graphcut" || options.method == "auto") &&
+      options.background_file.empty()) {
+    SegmentOptions graphcut = options;
+    graphcut.method = "graphcut";
+    Expected<std::unique_ptr<Segmenter>> segmenter = CreateSegmenter(graphcut);
+    if (!segmenter) return std::unexpected(segmenter.error());
+    made.state_->graphcut = std::move(*segmenter);
+  }
+  return made;
+}
+
+cv::Mat FrameByFrameSegmentation::Add(std::size_t index, const cv::Mat& frame) {
+  State::Frame found;
+  found.added = true;
+  {
+    const std::lock_guard lock(state_->mutex);
+    if (!state_->size) state_->size = frame.size();
+    found.usable = frame.type() == CV_8UC3 && frame.size() == *state_->size;
+  }
+  bool final = false;
+  if (found.usable) {
+    found.outline = SurveyFrame(frame, OutlinePoints(frame.size(), 2));
+    // For auto, what the frame's own outline says of the set's method: a coloured backdrop
+    // (chroma: not cut here), or an uneven one (likely learned: cut, as auto learns it from
+    // graphcut's masks, but kept whole for the learning).
+    found.cut = state_->graphcut != nullptr;
+    final = found.cut;
+    if (found.cut && state_->options.method == "auto") {
+      const BackdropSurvey alone = CombineOutlines({found.outline}, found.outline.colours.size());
+      found.cut = alone.kind != "coloured";
+      final = found.cut && alone.outline_uniformity >= kLikelyEvenShare;
+    }
+    if (found.cut) {
+      FrameFacts facts;
+      facts.whole_outline = found.outline.surface;
+      found.mask = state_->graphcut->SegmentWithFacts(frame, cv::Mat(), facts);
+    }
+  }
+  cv::Mat mask = final && found.mask ? *found.mask : cv::Mat();
+  const std::lock_guard lock(state_->mutex);
+  if (state_->frames.size() <= index) state_->frames.resize(index + 1);
+  state_->frames[index] = std::move(found);
+  return mask;
+}
+
+Expected<std::optional<SetSegmentation>> FrameByFrameSegmentation::Finish() {
+  const std::lock_guard lock(state_->mutex);
+  std::vector<State::Frame>& frames = state_->frames;
+  const bool all = !frames.empty() && std::all_of(frames.begin(), frames.end(), [](const auto& f) {
+    return f.added && f.usable;
+  });
+  if (!all || !state_->graphcut) return std::nullopt;
+  std::vector<FrameOutline> outlines;
+  outlines.reserve(frames.size());
+  for (State::Frame& frame : frames) outlines.push_back(std::move(frame.outline));
+  SetSegmentation result;
+  result.survey = CombineOutlines(outlines, outlines.front().colours.size());
+  PickMethod(state_->options, frames.size(), result);
+  const bool cut = std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f.cut; });
+  if (result.method != "graphcut" || !cut) {
+    // Not the set's masks; those SegmentImageSet learns the backdrop from, when all were cut.
+    if (cut && std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f.mask; })) {
+      for (State::Frame& frame : frames) masks_.push_back(*frame.mask);
+    }
+    return std::nullopt;
+  }
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (!frames[i].mask) {
+      // As SegmentAll says it.
+      return std::unexpected(WithContext(frames[i].mask.error(), fmt::format("image {}", i + 1)));
+    }
+    result.masks.push_back(*frames[i].mask);
+  }
+  JudgeMasks(result);
   return result;
 }
 

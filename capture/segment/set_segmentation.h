@@ -4,6 +4,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -63,10 +64,53 @@ struct SetSegmentation {
 // Any other method runs as configured (background without background_file learns the backdrop
 // as auto does). A frame's problem: no object found; the object covers over 60 % of the frame;
 // the object touches the frame's edge on more than half of its outline; the mask is under 20 %
-// of the median area of the set's other masks (3 or more). Errors: bad_input for
-// invalid options or frames, or background_file unreadable or of another size (naming it).
+// of the median area of the set's other masks (3 or more). `graphcut_masks` (may be null): the
+// frames' masks by graphcut when they were made already (FrameByFrameSegmentation), for auto to
+// learn the backdrop from. Errors: bad_input for invalid options or frames, or background_file
+// unreadable or of another size (naming it).
 Expected<SetSegmentation> SegmentImageSet(const std::vector<cv::Mat>& frames,
-                                          const SegmentOptions& options);
+                                          const SegmentOptions& options,
+                                          const std::vector<cv::Mat>* graphcut_masks = nullptr);
+
+// SegmentImageSet's work done frame by frame as the frames come, so that a caller need not hold
+// the set's frames whole (`revolve reconstruct --images` cuts each photo to its object's window
+// as soon as it is decoded): each frame's part of the survey, and its mask by graphcut, which is
+// the set's mask whenever SegmentImageSet would use graphcut (asked for, or picked by auto on an
+// even backdrop or with a moving camera) and the rough mask auto learns a still camera's backdrop
+// from. The result is SegmentImageSet's to the bit.
+class FrameByFrameSegmentation {
+ public:
+  // Errors: bad_input for invalid options (as SegmentImageSet).
+  static Expected<FrameByFrameSegmentation> Create(const SegmentOptions& options);
+  FrameByFrameSegmentation(FrameByFrameSegmentation&&) noexcept;
+  FrameByFrameSegmentation& operator=(FrameByFrameSegmentation&&) noexcept;
+  ~FrameByFrameSegmentation();
+
+  // Frame `index` of the set (CV_8UC3, the first frame's size): surveyed, and cut by graphcut
+  // unless the options rule it out (another method, or a background_file) or, for auto, its own
+  // outline shows a coloured backdrop. Returns the mask (CV_8UC1 0/255, the frame's size) when
+  // the set will most likely keep it, so that the caller may let go of all but the object's
+  // window now: graphcut asked for, or auto and an outline within 12 levels of its smooth fit
+  // for 95 % of it. Otherwise an empty Mat: keep the frame whole for Finish's nullopt. Thread-safe
+  // for distinct indexes; each index from 0 to the set's count once, in any order.
+  cv::Mat Add(std::size_t index, const cv::Mat& frame);
+
+  // After every frame was added: SegmentImageSet(frames, options) when graphcut's masks are the
+  // set's; nullopt when they are not, or a frame was missing or not of the set's kind or size:
+  // the caller then gives the frames to SegmentImageSet, with graphcut_masks(). Errors: a
+  // frame's, as SegmentImageSet's.
+  Expected<std::optional<SetSegmentation>> Finish();
+
+  // After Finish gave nullopt: every frame's graphcut mask, or none when not all were cut.
+  const std::vector<cv::Mat>& graphcut_masks() const { return masks_; }
+
+ private:
+  struct State;
+  FrameByFrameSegmentation();
+
+  std::unique_ptr<State> state_;
+  std::vector<cv::Mat> masks_;
+};
 
 // A scan's stops segmented as they arrive, with the backdrop learned from the first ones (a live
 // scan has no sequence to survey beforehand). Used without a frame of the empty scene, for

@@ -151,6 +151,8 @@ class ImagesRun {
     if (!legacy_threshold_) {
       REVOLVE_ASSIGN_OR_RETURN(segment_options_,
                                ImagesSegmentOptions(options_.config, options_.segment));
+      REVOLVE_ASSIGN_OR_RETURN(by_frame_,
+                               capture::FrameByFrameSegmentation::Create(*segment_options_));
     }
     rc::ImageSetOptions set_options;
     set_options.max_image_pixels = static_cast<std::int64_t>(options_.max_image_mp * 1e6);
@@ -168,6 +170,13 @@ class ImagesRun {
       if (thumbnails_.size() <= index) thumbnails_.resize(index + 1);
       thumbnails_[index] = std::move(thumbnail);
     };
+    // Each photo is segmented where it was decoded, and (hull) cut to its window there: the
+    // set's photos are not held whole at once.
+    if (by_frame_) {
+      set_options.segment_photo = [&](std::size_t index, const cv::Mat& photo) {
+        return by_frame_->Add(index, photo);
+      };
+    }
     REVOLVE_ASSIGN_OR_RETURN(set_, rc::LoadImageSet(options_.images, set_options));
     thumbnails_.resize(set_.images.size());
     photos_ = set_.kind == rc::ImageKind::kPhoto;
@@ -216,28 +225,52 @@ class ImagesRun {
     return made;
   }
 
-  // Silhouettes: segmented here (photos).
+  // Silhouettes: segmented here (photos), from the masks made as the photos were decoded when
+  // they are the set's (FrameByFrameSegmentation), else from the photos read whole again.
   Expected<void> Segment() {
     if (photos_ && !legacy_threshold_) {
-      std::vector<cv::Mat> photos;
-      photos.reserve(set_.images.size());
-      for (const rc::SetImage& image : set_.images) photos.push_back(image.image);
+      std::optional<capture::SetSegmentation> done;
+      REVOLVE_ASSIGN_OR_RETURN(done, by_frame_->Finish());
       SetMasks segmented;
-      REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(photos, *segment_options_, out_));
-      photos.clear();
-      masks_ = std::move(segmented.masks);
-      problems_ = std::move(segmented.problems);
-      report_["segmentation"] = segmented.report;
+      if (done) {
+        segmented = DescribeSegmentation(std::move(*done), *segment_options_, out_);
+      } else {
+        std::vector<cv::Mat> photos(set_.images.size());
+        std::vector<std::optional<Error>> errors(photos.size());
+        rc::ParallelFor(0, photos.size(), [&](std::size_t i) {
+          Expected<cv::Mat> photo = WholePhoto(i);
+          if (photo) {
+            photos[i] = std::move(*photo);
+          } else {
+            errors[i] = photo.error();
+          }
+        });
+        for (const std::optional<Error>& error : errors) {
+          if (error) return std::unexpected(*error);
+        }
+        const std::vector<cv::Mat>& rough = by_frame_->graphcut_masks();
+        REVOLVE_ASSIGN_OR_RETURN(segmented, SegmentPhotos(photos, *segment_options_, out_,
+                                                          rough.empty() ? nullptr : &rough));
+        for (std::size_t i = 0; i < photos.size(); ++i) {
+          set_.images[i].image = std::move(photos[i]);
+          set_.images[i].image_origin = cv::Point();
+        }
+      }
+      by_frame_.reset();
       if (options_.method == "hull") {
-        // Each photo cut to its window now that its mask is known (as Load does for --segment
-        // threshold).
+        // Each photo still whole cut to its window now that its mask is known (as Load cuts
+        // those it can).
         rc::ParallelFor(0, set_.images.size(), [&](std::size_t i) {
           rc::SetImage& image = set_.images[i];
-          const cv::Rect window = rc::FrameWindow(masks_[i], kFrameMarginPx);
+          if (!IsWhole(image)) return;
+          const cv::Rect window = rc::FrameWindow(segmented.masks[i], kFrameMarginPx);
           image.image = image.image(window).clone();
           image.image_origin = window.tl();
         });
       }
+      masks_ = std::move(segmented.masks);
+      problems_ = std::move(segmented.problems);
+      report_["segmentation"] = segmented.report;
     } else {
       const bool cut_out = set_.kind == rc::ImageKind::kCutOut;
       report_["segmentation"] = {
@@ -446,6 +479,24 @@ class ImagesRun {
     return {};
   }
 
+  bool IsWhole(const rc::SetImage& image) const {
+    return image.image_origin == cv::Point() &&
+           image.image.size() == cv::Size(set_.width_px, set_.height_px);
+  }
+
+  // Photo i whole: the set's, or read again when the set holds a window of it.
+  Expected<cv::Mat> WholePhoto(std::size_t i) const {
+    const rc::SetImage& image = set_.images[i];
+    const cv::Size size(set_.width_px, set_.height_px);
+    if (IsWhole(image)) return image.image;
+    cv::Mat photo;
+    REVOLVE_ASSIGN_OR_RETURN(
+        photo,
+        rc::ReadImage8(image.path, static_cast<std::int64_t>(options_.max_image_mp * 1e6), size));
+    if (photo.channels() == 1) cv::cvtColor(photo, photo, cv::COLOR_GRAY2BGR);
+    return photo;
+  }
+
   // Reads photo i again, when the window of it the set holds misses some of the pixels the
   // reconstructor may read (Reconstructor::FrameWindow), and keeps that window of it.
   Expected<void> CoverWindow(const rc::Reconstructor& reconstructor, const cv::Mat& mask,
@@ -457,10 +508,7 @@ class ImagesRun {
     Logger("station")->debug("{}: read again for the pixels at ({}, {}) {}x{}", image.file_name,
                              needed.x, needed.y, needed.width, needed.height);
     cv::Mat photo;
-    REVOLVE_ASSIGN_OR_RETURN(
-        photo, rc::ReadImage8(image.path, static_cast<std::int64_t>(options_.max_image_mp * 1e6),
-                              cv::Size(set_.width_px, set_.height_px)));
-    if (photo.channels() == 1) cv::cvtColor(photo, photo, cv::COLOR_GRAY2BGR);
+    REVOLVE_ASSIGN_OR_RETURN(photo, WholePhoto(i));
     image.image = photo(needed).clone();
     image.image_origin = needed.tl();
     return {};
@@ -592,6 +640,7 @@ class ImagesRun {
   bool legacy_threshold_ = false;
   bool photos_ = false;
   std::optional<capture::SegmentOptions> segment_options_;
+  std::optional<capture::FrameByFrameSegmentation> by_frame_;  // Load to Segment (photos)
   rc::ImageSet set_;
   std::vector<std::string> names_;
   std::vector<cv::Mat> masks_;

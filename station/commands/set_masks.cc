@@ -64,20 +64,27 @@ Expected<capture::SegmentOptions> ImagesSegmentOptions(
 }
 
 Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
-                                 const capture::SegmentOptions& options, std::ostream& out) {
-  Expected<capture::SetSegmentation> segmented = capture::SegmentImageSet(photos, options);
+                                 const capture::SegmentOptions& options, std::ostream& out,
+                                 const std::vector<cv::Mat>* graphcut_masks) {
+  Expected<capture::SetSegmentation> segmented =
+      capture::SegmentImageSet(photos, options, graphcut_masks);
   if (!segmented) return std::unexpected(segmented.error());
+  return DescribeSegmentation(std::move(*segmented), options, out);
+}
+
+SetMasks DescribeSegmentation(capture::SetSegmentation segmented,
+                              const capture::SegmentOptions& options, std::ostream& out) {
   SetMasks result;
-  result.masks = std::move(segmented->masks);
-  result.problems = std::move(segmented->problems);
-  const capture::BackdropSurvey& survey = segmented->survey;
-  out << fmt::format("segmentation: {} ({})\n", segmented->method,
-                     options.method == "auto" ? segmented->reason : "as configured");
-  Logger("station")->info("reconstruct --images: segmentation {}: {}", segmented->method,
-                          segmented->reason);
-  result.report = {{"method", segmented->method},
+  result.masks = std::move(segmented.masks);
+  result.problems = std::move(segmented.problems);
+  const capture::BackdropSurvey& survey = segmented.survey;
+  out << fmt::format("segmentation: {} ({})\n", segmented.method,
+                     options.method == "auto" ? segmented.reason : "as configured");
+  Logger("station")->info("reconstruct --images: segmentation {}: {}", segmented.method,
+                          segmented.reason);
+  result.report = {{"method", segmented.method},
                    {"requested", options.method},
-                   {"reason", segmented->reason},
+                   {"reason", segmented.reason},
                    {"backdrop",
                     {{"kind", survey.kind},
                      {"bgr", {survey.bgr[0], survey.bgr[1], survey.bgr[2]}},

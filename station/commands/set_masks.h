@@ -14,6 +14,7 @@
 
 #include "base/error.h"
 #include "base/rig.h"
+#include "capture/segment/set_segmentation.h"
 #include "capture/segmenter.h"
 
 namespace revolve::station {
@@ -31,10 +32,17 @@ struct SetMasks {
   nlohmann::json report;              // report.json's "segmentation" section
 };
 
-// Segments `photos` (CV_8UC3, one size) with capture::SegmentImageSet, logging the method and
-// why to `out`. A view with a problem keeps its (possibly empty) mask and its reason.
+// The masks of a set's segmentation (capture::SegmentImageSet's, or
+// FrameByFrameSegmentation's), logging the method and why to `out`. A view with a problem keeps
+// its (possibly empty) mask and its reason.
+SetMasks DescribeSegmentation(capture::SetSegmentation segmented,
+                              const capture::SegmentOptions& options, std::ostream& out);
+
+// Segments `photos` (CV_8UC3, one size) with capture::SegmentImageSet (`graphcut_masks`: see
+// there), then DescribeSegmentation.
 Expected<SetMasks> SegmentPhotos(const std::vector<cv::Mat>& photos,
-                                 const capture::SegmentOptions& options, std::ostream& out);
+                                 const capture::SegmentOptions& options, std::ostream& out,
+                                 const std::vector<cv::Mat>* graphcut_masks = nullptr);
 
 // Writes OUT/masks/<stem>.png (one per image, named after `names`' stems) and
 // OUT/contact_sheet.png (every image with its mask outlined: `thumbnails` are the photos'

@@ -7,11 +7,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
 
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -241,6 +243,89 @@ TEST(SetSegmentation, OneCoreAndAllCoresGiveTheSameMasks) {
       EXPECT_EQ(cv::countNonZero(one->masks[i] != all->masks[i]), 0) << one->method << " " << i;
     }
   }
+}
+
+void ExpectSameMasks(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
+                     const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].size(), b[i].size()) << what << " " << i;
+    EXPECT_EQ(cv::countNonZero(a[i] != b[i]), 0) << what << " " << i;
+  }
+}
+
+// `reconstruct --images` segments each photo as it is decoded (FrameByFrameSegmentation), in any
+// order, on all cores: where graphcut's masks are the set's, the result is SegmentImageSet's to
+// the bit, and the masks Add hands back (the photos are cut to their windows by them) are those;
+// elsewhere Finish says so, the frames stay whole, and auto's backdrop is learned from the masks
+// made as they came to the same masks.
+TEST(SetSegmentation, FrameByFrameIsTheWholeSetsSegmentation) {
+  auto camera = Camera("vase", 1.0);
+  ASSERT_NE(camera, nullptr);
+  const cv::Size size = camera->RenderWithTruth(0.0, 1).image.size();
+  const cv::Mat cloth = test_support::Cloth(size, 6.0, 90.0, 23);
+  const cv::Mat green(size, CV_8UC3, cv::Scalar(40, 170, 50));
+  std::vector<cv::Mat> on_black, on_cloth, on_green;
+  for (int k = 0; k < 8; ++k) {
+    const RenderOutput render = camera->RenderWithTruth(45.0 * k, static_cast<std::uint64_t>(k));
+    on_black.push_back(MakeScene(Scene::kBlackShadowedObject, "vase", 45.0 * k).image);
+    on_cloth.push_back(Composite(render, cloth, static_cast<std::uint64_t>(100 + k)).image);
+    on_green.push_back(Composite(render, green, static_cast<std::uint64_t>(200 + k)).image);
+  }
+  struct Case {
+    const std::vector<cv::Mat>* frames;
+    std::string method;     // asked for
+    std::string picked;     // by SegmentImageSet
+    bool cut_as_they_come;  // Finish gives the set's masks
+  };
+  for (const Case& c :
+       {Case{&on_black, "auto", "graphcut", true}, Case{&on_cloth, "graphcut", "graphcut", true},
+        Case{&on_cloth, "auto", "background", false}, Case{&on_green, "auto", "chroma", false}}) {
+    const std::string what = c.picked + " (" + c.method + ")";
+    SegmentOptions options;
+    options.method = c.method;
+    const Expected<SetSegmentation> whole = SegmentImageSet(*c.frames, options);
+    ASSERT_TRUE(whole.has_value()) << whole.error().ToString();
+    ASSERT_EQ(whole->method, c.picked);
+    Expected<FrameByFrameSegmentation> by_frame = FrameByFrameSegmentation::Create(options);
+    ASSERT_TRUE(by_frame.has_value());
+    const std::size_t count = c.frames->size();
+    std::vector<cv::Mat> handed(count);
+    tbb::parallel_for(std::size_t{0}, count, [&](std::size_t j) {
+      const std::size_t i = count - 1 - j;  // last first
+      handed[i] = by_frame->Add(i, (*c.frames)[i]);
+    });
+    Expected<std::optional<SetSegmentation>> done = by_frame->Finish();
+    ASSERT_TRUE(done.has_value()) << done.error().ToString();
+    ASSERT_EQ(done->has_value(), c.cut_as_they_come) << what;
+    if (c.cut_as_they_come) {
+      const SetSegmentation& set = **done;
+      EXPECT_EQ(set.method, whole->method);
+      EXPECT_EQ(set.reason, whole->reason);
+      EXPECT_EQ(set.survey.bgr, whole->survey.bgr);
+      EXPECT_EQ(set.survey.outline_stillness, whole->survey.outline_stillness);
+      EXPECT_EQ(set.survey.outline_uniformity, whole->survey.outline_uniformity);
+      EXPECT_EQ(set.problems, whole->problems);
+      ExpectSameMasks(set.masks, whole->masks, what);
+      ExpectSameMasks(handed, whole->masks, what + ", as handed back");
+      continue;
+    }
+    for (const cv::Mat& mask : handed) EXPECT_TRUE(mask.empty()) << what << ": kept whole";
+    const std::vector<cv::Mat>& rough = by_frame->graphcut_masks();
+    EXPECT_EQ(rough.size(), c.picked == "background" ? count : 0u) << what;
+    const Expected<SetSegmentation> again = SegmentImageSet(*c.frames, options, &rough);
+    ASSERT_TRUE(again.has_value());
+    ExpectSameMasks(again->masks, whole->masks, what + ", learned from the masks made");
+  }
+  // A frame that never came: the caller segments the set.
+  SegmentOptions options;
+  options.method = "auto";
+  Expected<FrameByFrameSegmentation> partial = FrameByFrameSegmentation::Create(options);
+  ASSERT_TRUE(partial.has_value());
+  partial->Add(1, on_black[1]);
+  const Expected<std::optional<SetSegmentation>> missing = partial->Finish();
+  ASSERT_TRUE(missing.has_value());
+  EXPECT_FALSE(missing->has_value());
 }
 
 TEST(SetSegmentation, ATurntableSequenceOverBlackKeepsTheObjectsDeepShadows) {
