@@ -1,6 +1,7 @@
 #include "station/contact_sheet.h"
 
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
@@ -34,11 +35,34 @@ inline std::uint8_t BlockSample(const std::uint16_t* sums, int step, int columns
                                                         static_cast<float>(columns * rows));
 }
 
+// column[x] += row[x] for the `width` samples of a frame row (built for AVX2 too where the
+// processor has it).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void AddRow(const std::uint8_t* row, int width, std::uint16_t* column) {
+  for (int x = 0; x < width; ++x) column[x] = static_cast<std::uint16_t>(column[x] + row[x]);
+}
+
 // A thumbnail row of kChannels channels from its frame rows' column sums.
 template <int kChannels>
 void BlockSums(const std::uint16_t* column, int k, int frame_cols, int rows, int whole,
                float per_sample, std::uint8_t* d, int width) {
-  for (int j = 0; j < width; ++j) {
+  // The whole blocks (`whole` samples), a pixel's channels summed together: BlockSample's sums
+  // and rounding, without its per-sample choices.
+  const int whole_blocks = whole / kChannels;
+  for (int j = 0; j < whole_blocks; ++j) {
+    const std::uint16_t* sums = column + static_cast<std::ptrdiff_t>(j) * k * kChannels;
+    std::array<int, kChannels> sum{};
+    for (int t = 0; t < k; ++t, sums += kChannels) {
+      for (int c = 0; c < kChannels; ++c) sum[c] += sums[c];
+    }
+    for (int c = 0; c < kChannels; ++c) {
+      d[j * kChannels + c] =
+          cv::saturate_cast<std::uint8_t>(static_cast<float>(sum[c]) * per_sample);
+    }
+  }
+  for (int j = whole_blocks; j < width; ++j) {
     const std::uint16_t* sums = column + static_cast<std::ptrdiff_t>(j) * k * kChannels;
     const int columns = std::clamp(frame_cols - j * k, 0, k);
     for (int c = 0; c < kChannels; ++c) {
@@ -53,7 +77,8 @@ void BlockSums(const std::uint16_t* column, int k, int frame_cols, int rows, int
 // each thumbnail sample of a whole k x k block is round(sum * (1.f / (k k))), and of a block the
 // right or bottom border cuts short round(float(sum) / count) over its samples inside, as OpenCV's.
 // The sums are made a row of blocks at a time, the k rows' columns first, not from k^2 scattered
-// reads per sample: 0.8 ms instead of 1.5 for a 1280 x 960 photo. Otherwise cv::resize itself.
+// reads per sample (1.5 ms for a 1280 x 960 photo), and a whole block's channels together: 5 M
+// instructions a photo instead of 10 M. Otherwise cv::resize itself.
 cv::Mat ShrinkByArea(const cv::Mat& src, double fx) {
   const double factor = 1.0 / fx;
   const int k = cv::saturate_cast<int>(factor);
@@ -79,11 +104,8 @@ cv::Mat ShrinkByArea(const cv::Mat& src, double fx) {
       std::fill(d, d + samples, std::uint8_t{0});
       continue;
     }
-    std::fill(column.begin(), column.end(), std::uint16_t{0});
-    for (int y = y0; y < y0 + rows; ++y) {
-      const std::uint8_t* s = src.ptr<std::uint8_t>(y);
-      for (int x = 0; x < width; ++x) column[x] = static_cast<std::uint16_t>(column[x] + s[x]);
-    }
+    std::copy(src.ptr<std::uint8_t>(y0), src.ptr<std::uint8_t>(y0) + width, column.begin());
+    for (int y = y0 + 1; y < y0 + rows; ++y) AddRow(src.ptr<std::uint8_t>(y), width, column.data());
     // Each block's k columns (fewer where the right border cuts it short), channel by channel.
     const int whole_here = rows == k ? whole : 0;
     if (cn == 3) {
