@@ -428,14 +428,15 @@ cv::Mat FrameByFrameSegmentation::Add(std::size_t index, const cv::Mat& frame) {
     found.usable = frame.type() == CV_8UC3 && frame.size() == *state_->size;
   }
   bool final = false;
-  if (found.usable) {
+  // Without graphcut the set is segmented by SegmentImageSet, which surveys it itself.
+  if (found.usable && state_->graphcut) {
     found.outline = SurveyFrame(frame, OutlinePoints(frame.size(), 2));
     // For auto, what the frame's own outline says of the set's method: a coloured backdrop
     // (chroma: not cut here), or an uneven one (likely learned: cut, as auto learns it from
     // graphcut's masks, but kept whole for the learning).
-    found.cut = state_->graphcut != nullptr;
-    final = found.cut;
-    if (found.cut && state_->options.method == "auto") {
+    found.cut = true;
+    final = true;
+    if (state_->options.method == "auto") {
       const BackdropSurvey alone = CombineOutlines({found.outline}, found.outline.colours.size());
       found.cut = alone.kind != "coloured";
       final = found.cut && alone.outline_uniformity >= kLikelyEvenShare;
