@@ -86,13 +86,14 @@ class FrameByFrameSegmentation {
   FrameByFrameSegmentation& operator=(FrameByFrameSegmentation&&) noexcept;
   ~FrameByFrameSegmentation();
 
-  // Frame `index` of the set (CV_8UC3, the first frame's size): surveyed, and cut by graphcut
-  // unless the options rule it out (another method, or a background_file) or, for auto, its own
-  // outline shows a coloured backdrop. Returns the mask (CV_8UC1 0/255, the frame's size) when
-  // the set will most likely keep it, so that the caller may let go of all but the object's
-  // window now: graphcut asked for, or auto and an outline within 12 levels of its smooth fit
-  // for 95 % of it. Otherwise an empty Mat: keep the frame whole for Finish's nullopt. Thread-safe
-  // for distinct indexes; each index from 0 to the set's count once, in any order.
+  // Frame `index` of the set (CV_8UC3, the first frame's size): surveyed and cut by graphcut,
+  // unless the options rule graphcut out (another method, or a background_file: nothing is done)
+  // or, for auto, its own outline shows a coloured backdrop (surveyed only). Returns the mask
+  // (CV_8UC1 0/255, the frame's size) when the set will most likely keep it, so that the caller may
+  // let go of all but the object's window now: graphcut asked for, or auto and an outline within 12
+  // levels of its smooth fit for 95 % of it. Otherwise an empty Mat: keep the frame whole for
+  // Finish's nullopt. Thread-safe for distinct indexes; each index from 0 to the set's count once,
+  // in any order.
   cv::Mat Add(std::size_t index, const cv::Mat& frame);
 
   // After every frame was added: SegmentImageSet(frames, options) when graphcut's masks are the
