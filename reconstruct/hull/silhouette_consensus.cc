@@ -39,12 +39,24 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
                                                      const std::vector<View>& views,
                                                      const Eigen::Vector3d& box_min,
                                                      const Eigen::Vector3d& box_max,
-                                                     const ConsensusOptions& options) {
-  if (masks.size() != views.size() || masks.size() < 3) {
+                                                     const ConsensusOptions& options,
+                                                     const std::vector<cv::Point>& mask_origins) {
+  if (masks.size() != views.size() || masks.size() < 3 ||
+      (!mask_origins.empty() && mask_origins.size() != masks.size())) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("silhouette consensus: {} masks for {} views (3 or more needed)",
                                  masks.size(), views.size()));
   }
+  // Mask i over `rect` of its view's image (zero where the mask is not held).
+  const auto mask_over = [&](std::size_t i, const cv::Rect& rect) -> cv::Mat {
+    if (mask_origins.empty()) return masks[i](rect);
+    cv::Mat over(rect.size(), CV_8UC1, cv::Scalar(0));
+    const cv::Rect held(mask_origins[i], masks[i].size());
+    if (const cv::Rect both = held & rect; !both.empty()) {
+      masks[i](both - held.tl()).copyTo(over(both - rect.tl()));
+    }
+    return over;
+  };
   Expected<VoxelGrid> grid = VoxelGrid::FromBox(box_min, box_max, options.resolution);
   if (!grid) return std::unexpected(grid.error());
   const Eigen::Vector3d middle = 0.5 * (box_min + box_max);
@@ -59,7 +71,20 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   std::vector<std::optional<Error>> errors(masks.size());
   std::vector<VisualHull::PreparedView> prepared(masks.size());
   ParallelFor(0, masks.size(), [&](std::size_t j) {
-    Expected<VisualHull::PreparedView> view = VisualHull::PrepareView(masks[j], views[j]);
+    // A window is prepared from the whole mask it stands for (made for the time it takes).
+    const auto prepare = [&]() -> Expected<VisualHull::PreparedView> {
+      if (mask_origins.empty()) return VisualHull::PrepareView(masks[j], views[j]);
+      const cv::Rect image(0, 0, views[j].width_px, views[j].height_px);
+      const cv::Rect held(mask_origins[j], masks[j].size());
+      if (image.empty() || (held & image) != held) {
+        return MakeError(ErrorCode::kBadInput,
+                         fmt::format("silhouette consensus: mask {}'s window lies outside its "
+                                     "view's {}x{} image",
+                                     j, views[j].width_px, views[j].height_px));
+      }
+      return VisualHull::PrepareView(mask_over(j, image), views[j]);
+    };
+    Expected<VisualHull::PreparedView> view = prepare();
     if (view) {
       prepared[j] = std::move(*view);
     } else {
@@ -86,7 +111,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
         std::max(options.tolerance_px,
                  static_cast<int>(std::ceil(VoxelSpanPx(views[i], middle, grid->voxel_mm))));
     // Only the pixels within `radius` of either silhouette can be set in what follows.
-    const cv::Rect image(0, 0, masks[i].cols, masks[i].rows);
+    const cv::Rect image(0, 0, views[i].width_px, views[i].height_px);
     cv::Rect others_rect;
     if (!others.box.empty()) {
       others_rect = MaskRect(others.pixels);
@@ -101,10 +126,11 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
     if (const cv::Rect drawn = others.box & roi; !drawn.empty()) {
       others.pixels(drawn - others.box.tl()).copyTo(others_roi(drawn - roi.tl()));
     }
-    result.agreement[i] = MaskIoU(masks[i](roi), others_roi);
-    result.masks[i] = CutToDilated(masks[i](roi), others_roi, radius);
+    const cv::Mat mask_roi = mask_over(i, roi);
+    result.agreement[i] = MaskIoU(mask_roi, others_roi);
+    result.masks[i] = CutToDilated(mask_roi, others_roi, radius);
     result.cut_roi[i] = roi;
-    result.size[i] = masks[i].size();
+    result.size[i] = image.size();
   });
   return result;
 }

@@ -47,13 +47,13 @@ struct SilhouetteConsensus {
 // The leave-one-out hulls come from one carve per view (VisualHull::LeaveOneOut), not one carve
 // per view and hull.
 // Contract: masks (CV_8UC1) and views (depth > 0 in front of each camera, i.e. normalised)
-// of one count (>= 3), each mask of its view's size. Errors: bad_input otherwise, or an empty
-// or inverted box.
-Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>& masks,
-                                                     const std::vector<View>& views,
-                                                     const Eigen::Vector3d& box_min,
-                                                     const Eigen::Vector3d& box_max,
-                                                     const ConsensusOptions& options = {});
+// of one count (>= 3), each mask of its view's size, or (`mask_origins` not empty) a window of
+// such a mask whose pixel (0, 0) is the view's mask_origins[i], none set outside it. Errors:
+// bad_input otherwise, or an empty or inverted box.
+Expected<SilhouetteConsensus> ConsensusOfSilhouettes(
+    const std::vector<cv::Mat>& masks, const std::vector<View>& views,
+    const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max,
+    const ConsensusOptions& options = {}, const std::vector<cv::Point>& mask_origins = {});
 
 // `mask` where `others` dilated by the ellipse of `radius` (cv::getStructuringElement's
 // MORPH_ELLIPSE, 2 radius + 1 wide) is set: cv::bitwise_and(mask, dilated), the pixels of

@@ -268,7 +268,15 @@ class ImagesRun {
           image.image_origin = window.tl();
         });
       }
+      // Each mask held as its window from here on (the whole masks would stay alongside the
+      // consensus's own whole copies of them).
       masks_ = std::move(segmented.masks);
+      mask_origins_.assign(masks_.size(), cv::Point());
+      rc::ParallelFor(0, masks_.size(), [&](std::size_t i) {
+        const cv::Rect window = rc::FrameWindow(masks_[i], 0);
+        masks_[i] = masks_[i](window).clone();
+        mask_origins_[i] = window.tl();
+      });
       problems_ = std::move(segmented.problems);
       report_["segmentation"] = segmented.report;
     } else {
@@ -421,8 +429,9 @@ class ImagesRun {
 
   // Every mask against the hull of the other views.
   Expected<void> Consensus() {
-    // From here each mask is held as its bounding rectangle (a fraction of the image): whole
-    // masks are made again one at a time where needed.
+    // From here each mask is held as its bounding rectangle (a fraction of the image; photos'
+    // masks are from the segmentation on): whole masks are made again one at a time where
+    // needed.
     Expected<std::vector<double>> agreement =
         ApplyConsensus(masks_, views_, problems_, box_min_, box_max_, out_, &mask_origins_);
     if (!agreement) return std::unexpected(WithContext(agreement.error(), "silhouette consensus"));

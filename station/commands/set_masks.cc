@@ -209,9 +209,12 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
                                              const Eigen::Vector3d& box_max, std::ostream& out,
                                              std::vector<cv::Point>* mask_origins) {
   std::vector<double> agreement(masks.size(), 0.0);
-  mask_origins->assign(masks.size(), cv::Point());
+  // Masks that come as windows (FrameWindow(mask, 0) of each) stay windows where not cut.
+  const bool came_as_windows = !mask_origins->empty();
+  const std::vector<cv::Point> origins = came_as_windows ? *mask_origins : std::vector<cv::Point>();
+  if (!came_as_windows) mask_origins->assign(masks.size(), cv::Point());
   // Each mask to its window, on all cores (a cut mask is cut to its window already).
-  std::vector<char> windowed(masks.size(), 0);
+  std::vector<char> windowed(masks.size(), came_as_windows ? 1 : 0);
   const auto to_windows = [&] {
     reconstruct::ParallelFor(0, masks.size(), [&](std::size_t i) {
       if (windowed[i]) return;
@@ -223,18 +226,20 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
   std::vector<std::size_t> usable;
   std::vector<cv::Mat> usable_masks;
   std::vector<View> usable_views;
+  std::vector<cv::Point> usable_origins;  // empty: whole masks
   for (std::size_t i = 0; i < masks.size(); ++i) {
     if (!problems[i].empty()) continue;
     usable.push_back(i);
     usable_masks.push_back(masks[i]);
     usable_views.push_back(views[i]);
+    if (came_as_windows) usable_origins.push_back(origins[i]);
   }
   if (usable.size() < 3) {
     to_windows();
     return agreement;
   }
-  Expected<reconstruct::SilhouetteConsensus> consensus =
-      reconstruct::ConsensusOfSilhouettes(usable_masks, usable_views, box_min, box_max);
+  Expected<reconstruct::SilhouetteConsensus> consensus = reconstruct::ConsensusOfSilhouettes(
+      usable_masks, usable_views, box_min, box_max, {}, usable_origins);
   if (!consensus) return std::unexpected(consensus.error());
   // The originals are held once from here (masks): each cut mask replaces its original.
   usable_masks.clear();
@@ -255,6 +260,7 @@ Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
     const cv::Rect tight = cut.empty() ? cv::Rect() : MaskRect(cut);
     if (tight.empty()) {
       masks[i] = cv::Mat::zeros(consensus->size[k], CV_8UC1);
+      (*mask_origins)[i] = cv::Point();
     } else {
       masks[i] = cut(tight).clone();
       (*mask_origins)[i] = consensus->cut_roi[k].tl() + tight.tl();

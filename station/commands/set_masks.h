@@ -60,10 +60,11 @@ Expected<void> WriteMasks(const std::filesystem::path& out_dir,
 // Silhouette consensus (reconstruct/hull/silhouette_consensus.h) over the usable views (those
 // whose `problems` entry is empty; `views` normalised, the box the carving volume): every usable
 // mask is cut to the other views' hull, and a view whose agreement is below 0.85 and 0.15 below
-// the median is left out (its problem says why). `masks` come whole (each its view's image) and
-// leave as windows: each mask's FrameWindow(mask, 0) (its silhouette's rectangle; an empty
-// mask's whole image), its origin into *mask_origins. Returns the per-view agreement (0 for
-// views left out before) for report.json; logs to `out`.
+// the median is left out (its problem says why). `masks` come whole (each its view's image,
+// *mask_origins empty) or as windows (each FrameWindow(mask, 0) of its whole mask, from
+// *mask_origins), and leave as windows: each mask's FrameWindow(mask, 0) (its silhouette's
+// rectangle; an empty mask's whole image), its origin into *mask_origins. Returns the per-view
+// agreement (0 for views left out before) for report.json; logs to `out`.
 Expected<std::vector<double>> ApplyConsensus(std::vector<cv::Mat>& masks,
                                              const std::vector<View>& views,
                                              std::vector<std::string>& problems,

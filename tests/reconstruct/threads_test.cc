@@ -238,6 +238,40 @@ TEST(Threads, ConsensusIsTheSameOnOneThreadAndAllCores) {
   EXPECT_LT(cv::countNonZero(one->masks[4]), cv::countNonZero(scan.masks[4]));  // the stand cut
 }
 
+// `reconstruct --images` hands the consensus each mask as its window: the same agreements and
+// cut masks as the whole masks, for tight windows, loose ones reaching the image's edge, and an
+// empty mask's whole image; a window outside its view's image is refused.
+TEST(Threads, ConsensusOfWindowsIsTheWholeMasks) {
+  SmallScan scan = MakeScan(12);
+  cv::rectangle(scan.masks[4], cv::Rect(0, 200, 320, 40), cv::Scalar(255), cv::FILLED);  // a stand
+  scan.masks[7].setTo(0);                                                                // empty
+  std::vector<cv::Mat> windows;
+  std::vector<cv::Point> origins;
+  for (std::size_t i = 0; i < scan.masks.size(); ++i) {
+    cv::Rect window = cv::boundingRect(scan.masks[i]);
+    if (window.empty()) window = cv::Rect(0, 0, scan.masks[i].cols, scan.masks[i].rows);
+    if (i % 3 == 1) {  // loose, to the image's edges
+      window = cv::Rect(window.x - 50, window.y - 3, window.width + 400, window.height + 9) &
+               cv::Rect(0, 0, scan.masks[i].cols, scan.masks[i].rows);
+    }
+    windows.push_back(scan.masks[i](window).clone());
+    origins.push_back(window.tl());
+  }
+  const Expected<SilhouetteConsensus> whole =
+      ConsensusOfSilhouettes(scan.masks, scan.views, {-60, -60, 0}, {60, 60, 120});
+  const Expected<SilhouetteConsensus> held =
+      ConsensusOfSilhouettes(windows, scan.views, {-60, -60, 0}, {60, 60, 120}, {}, origins);
+  ASSERT_TRUE(whole && held) << (held ? "" : held.error().ToString());
+  EXPECT_EQ(whole->agreement, held->agreement);
+  for (std::size_t i = 0; i < scan.masks.size(); ++i) {
+    EXPECT_EQ(whole->cut_roi[i], held->cut_roi[i]) << i;
+    EXPECT_EQ(cv::countNonZero(whole->CutMask(i) != held->CutMask(i)), 0) << i;
+  }
+  origins[2].x = scan.masks[2].cols - windows[2].cols + 1;  // one pixel past the right edge
+  EXPECT_FALSE(
+      ConsensusOfSilhouettes(windows, scan.views, {-60, -60, 0}, {60, 60, 120}, {}, origins));
+}
+
 // The atlas's PNG is encoded in bands of rows on all cores: any image, as many bands as it
 // takes (one row, a band's edge, many), decodes to its own pixels, and one thread makes the same
 // bytes.
