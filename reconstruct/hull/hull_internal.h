@@ -25,6 +25,10 @@ constexpr int kBrick = 1 << kBrickShift;
 // Widening of a block's projected rectangle (px): far above the floating-point error of a
 // projection (~1e-12 px), far below anything that changes a decision more than conservatively.
 constexpr double kRectMarginPx = 1e-6;
+// How much wider than the silhouette's bounding rectangle a view's mask is held (px, each side):
+// the rectangle of a brick on the silhouette's edge mostly lies within it, so the brick is
+// tested on vectors (CarveBrick<true>) without reading past the held pixels.
+constexpr int kWindowMarginPx = 16;
 
 // Homogeneous projection; every test of the carver goes through this one expression.
 struct Homogeneous {
@@ -55,11 +59,17 @@ namespace revolve::reconstruct {
   const double inv_w = 1.0 / w;
   const double fu = x * inv_w + 0.5;
   const double fv = y * inv_w + 0.5;
-  if (!(fu >= 0.0 && fv >= 0.0 && fu < view.mask01.cols && fv < view.mask01.rows)) {
+  if (!(fu >= 0.0 && fv >= 0.0 && fu < view.width && fv < view.height)) {
     return true;  // outside the image: not seen
   }
-  return view.mask01.data[static_cast<std::size_t>(view.mask01.step[0]) * static_cast<int>(fv) +
-                          static_cast<int>(fu)] != 0;
+  // In the image: off the silhouette outside the held window.
+  const auto column = static_cast<unsigned>(static_cast<int>(fu) - view.window.x);
+  const auto row = static_cast<unsigned>(static_cast<int>(fv) - view.window.y);
+  if (column >= static_cast<unsigned>(view.window.width) ||
+      row >= static_cast<unsigned>(view.window.height)) {
+    return false;
+  }
+  return view.mask01.data[static_cast<std::size_t>(view.mask01.step[0]) * row + column] != 0;
 }
 
 }  // namespace revolve::reconstruct

@@ -71,7 +71,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
   std::vector<std::optional<Error>> errors(masks.size());
   std::vector<VisualHull::PreparedView> prepared(masks.size());
   ParallelFor(0, masks.size(), [&](std::size_t j) {
-    // A window is prepared from the whole mask it stands for (made for the time it takes).
+    // A window is prepared as it is (the same view as its whole mask gives).
     const auto prepare = [&]() -> Expected<VisualHull::PreparedView> {
       if (mask_origins.empty()) return VisualHull::PrepareView(masks[j], views[j]);
       const cv::Rect image(0, 0, views[j].width_px, views[j].height_px);
@@ -82,7 +82,7 @@ Expected<SilhouetteConsensus> ConsensusOfSilhouettes(const std::vector<cv::Mat>&
                                      "view's {}x{} image",
                                      j, views[j].width_px, views[j].height_px));
       }
-      return VisualHull::PrepareView(mask_over(j, image), views[j]);
+      return VisualHull::PrepareView(masks[j], mask_origins[j], views[j]);
     };
     Expected<VisualHull::PreparedView> view = prepare();
     if (view) {

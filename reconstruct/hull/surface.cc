@@ -76,7 +76,6 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
                            p(1, 0) * d.x() + p(1, 1) * d.y() + p(1, 2) * d.z(),
                            p(2, 0) * d.x() + p(2, 1) * d.y() + p(2, 2) * d.z());
   const double wb = ha.w + t_max * hd.z();
-  const cv::Mat& mask = view.mask01;
   if (!(ha.w > 0.0) || !(wb > 0.0)) {
     // The segment reaches behind the camera (a camera inside the volume): fine sampling, then
     // bisection between the last point that survives and the first that does not.
@@ -115,14 +114,18 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
   // off the image), nothing on the segment is carved (the common case).
   {
     const int u0 = std::max(std::min(iu, end_u), 0);
-    const int u1 = std::min(std::max(iu, end_u), mask.cols - 1);
+    const int u1 = std::min(std::max(iu, end_u), view.width - 1);
     const int v0 = std::max(std::min(iv, end_v), 0);
-    const int v1 = std::min(std::max(iv, end_v), mask.rows - 1);
-    bool all_on = true;
+    const int v1 = std::min(std::max(iv, end_v), view.height - 1);
+    // A pixel of the image outside the held window is off the silhouette.
+    const cv::Rect& held = view.window;
+    bool all_on =
+        u0 > u1 || v0 > v1 ||
+        (u0 >= held.x && v0 >= held.y && u1 < held.x + held.width && v1 < held.y + held.height);
     for (int y = v0; y <= v1 && all_on; ++y) {
-      const std::uint8_t* row = mask.ptr<std::uint8_t>(y);
+      const std::uint8_t* row = view.mask01.ptr<std::uint8_t>(y - held.y);
       for (int x = u0; x <= u1; ++x) {
-        all_on = all_on && row[x] != 0;
+        all_on = all_on && row[x - held.x] != 0;
       }
     }
     if (all_on) {
@@ -134,8 +137,8 @@ double VisualHull::FirstExit(const ViewData& view, const Eigen::Vector3d& a,
 
 double VisualHull::WalkCells(const ViewData& view, double hx, double hy, double hw,
                              const double* hd, double t_max, int iu, int iv, int end_u, int end_v) {
-  const int cols = view.mask01.cols;
-  const int rows = view.mask01.rows;
+  const int cols = view.width;
+  const int rows = view.height;
   const cv::Rect& roi = view.roi;
   // Whether in-image pixel (u, v) is off the silhouette, from the packed bits (which the
   // callers' tests have just read, so they are in cache): pixels outside roi are off.

@@ -663,7 +663,7 @@ class VisualHull::EdgePlacer {
       projected[c][1] = h.y;
       projected[c][2] = h.w;
     }
-    if (packed.AllOnOrUnseen(projected, view.mask01.cols, view.mask01.rows)) return false;
+    if (packed.AllOnOrUnseen(projected, view.width, view.height)) return false;
     reach->bound = MaxStepPx(p, projected, hull_.grid_.voxel_mm);
     for (int axes = 1; axes < 8; ++axes) {
       double u = 0.0, w = 0.0;
@@ -681,12 +681,12 @@ class VisualHull::EdgePlacer {
 
   // Whether the nearest pixels of [u - reach_u, u + reach_u] x [v - reach_v, v + reach_v]
   // (shifted by half a pixel) are all in the image and on the silhouette.
-  [[gnu::always_inline]] static bool AllOnAround(const cv::Mat& mask, const PackedMask& packed,
+  [[gnu::always_inline]] static bool AllOnAround(const ViewData& view, const PackedMask& packed,
                                                  double w, double u, double pv, double reach_u,
                                                  double reach_v) {
     const double u_lo = u + 0.5 - reach_u, u_hi = u + 0.5 + reach_u;
     const double v_lo = pv + 0.5 - reach_v, v_hi = pv + 0.5 + reach_v;
-    return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < mask.cols && v_hi < mask.rows &&
+    return w > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 && u_hi < view.width && v_hi < view.height &&
            packed.AllOn(static_cast<int>(u_lo), static_cast<int>(v_lo), static_cast<int>(u_hi),
                         static_cast<int>(v_hi));
   }
@@ -711,8 +711,8 @@ class VisualHull::EdgePlacer {
           half.x() * bound.u_px[0] + half.y() * bound.u_px[1] + half.z() * bound.u_px[2] + 1e-6;
       const double brick_reach_v =
           half.x() * bound.v_px[0] + half.y() * bound.v_px[1] + half.z() * bound.v_px[2] + 1e-6;
-      if (cull_views && AllOnAround(view.mask01, packed, sc.brick_w_[b], sc.brick_u_[b],
-                                    sc.brick_v_[b], brick_reach_u, brick_reach_v)) {
+      if (cull_views && AllOnAround(view, packed, sc.brick_w_[b], sc.brick_u_[b], sc.brick_v_[b],
+                                    brick_reach_u, brick_reach_v)) {
         continue;
       }
       for (std::size_t s = brick_start_[block.begin + b]; s < brick_start_[block.begin + b + 1];
@@ -734,7 +734,6 @@ class VisualHull::EdgePlacer {
   // predict); returns how many.
   std::size_t SamplesToWalk(Scratch& sc, const ViewData& view, const PackedMask& packed,
                             const Reach& reach, std::size_t count) {
-    const cv::Mat& mask = view.mask01;
     // The rectangles are made first (AllOnAround's; one outside the silhouette's where that is
     // false before any pixel is read), then tested together.
     for (std::size_t g = 0; g < count; ++g) {
@@ -746,7 +745,7 @@ class VisualHull::EdgePlacer {
       const double u_lo = sc.sample_u_[g] + 0.5 - around_u, u_hi = sc.sample_u_[g] + 0.5 + around_u;
       const double v_lo = sc.sample_v_[g] + 0.5 - around_v, v_hi = sc.sample_v_[g] + 0.5 + around_v;
       const bool in_image = sc.sample_w_[g] > 0.0 && u_lo >= 0.0 && v_lo >= 0.0 &&
-                            u_hi < mask.cols && v_hi < mask.rows;
+                            u_hi < view.width && v_hi < view.height;
       sc.rect_u0_[g] = static_cast<int>(in_image ? u_lo : -1.0);
       sc.rect_v0_[g] = static_cast<int>(in_image ? v_lo : -1.0);
       sc.rect_u1_[g] = static_cast<int>(in_image ? u_hi : -1.0);
@@ -769,7 +768,6 @@ class VisualHull::EdgePlacer {
   // first test on them (sc.rect_on_). Returns how many.
   std::size_t ItemsToWalk(Scratch& sc, const ViewData& view, const PackedMask& packed,
                           const double (&step_h)[3][2][3], std::size_t walks) {
-    const cv::Mat& mask = view.mask01;
     std::size_t m = 0;
     for (std::size_t q = 0; q < walks; ++q) {
       const std::size_t g = sc.walk_[q];
@@ -799,9 +797,9 @@ class VisualHull::EdgePlacer {
       const int iu = NearestPixel(sc.sample_u_[g]);
       const int iv = NearestPixel(sc.sample_v_[g]);
       sc.rect_u0_[r] = std::max(std::min(iu, sc.end_u_[r]), 0);
-      sc.rect_u1_[r] = std::min(std::max(iu, sc.end_u_[r]), mask.cols - 1);
+      sc.rect_u1_[r] = std::min(std::max(iu, sc.end_u_[r]), view.width - 1);
       sc.rect_v0_[r] = std::max(std::min(iv, sc.end_v_[r]), 0);
-      sc.rect_v1_[r] = std::min(std::max(iv, sc.end_v_[r]), mask.rows - 1);
+      sc.rect_v1_[r] = std::min(std::max(iv, sc.end_v_[r]), view.height - 1);
     }
     packed.AllOnEach(sc.rect_u0_.data(), sc.rect_v0_.data(), sc.rect_u1_.data(), sc.rect_v1_.data(),
                      m, sc.rect_on_.data());

@@ -188,11 +188,43 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
   if (!view.pixel_from_object.allFinite()) {
     return MakeError(ErrorCode::kBadInput, "view projection matrix is not finite");
   }
+  return PrepareWindow(mask, cv::Point(0, 0), view);
+}
+
+Expected<VisualHull::ViewData> VisualHull::PrepareWindow(const cv::Mat& window, cv::Point origin,
+                                                         const View& view) {
+  if (view.width_px <= 0 || view.height_px <= 0) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("view has no image size ({}x{})", view.width_px, view.height_px));
+  }
+  const cv::Rect image(0, 0, view.width_px, view.height_px);
+  const cv::Rect held(origin, window.size());
+  if (window.type() != CV_8UC1 || (held & image) != held) {
+    return MakeError(ErrorCode::kBadInput,
+                     fmt::format("silhouette mask window must be CV_8UC1 within the view's {}x{} "
+                                 "image, got type {} {}x{} at ({}, {})",
+                                 view.width_px, view.height_px, window.type(), window.cols,
+                                 window.rows, origin.x, origin.y));
+  }
+  if (!view.pixel_from_object.allFinite()) {
+    return MakeError(ErrorCode::kBadInput, "view projection matrix is not finite");
+  }
   ViewData data;
   data.pixel_from_object = view.pixel_from_object;
-  cv::min(mask, 1, data.mask01);
-  data.roi = MaskRect(data.mask01);
-  PackMask(data.mask01, data.roi, &data.packed, &data.packed_words);
+  data.width = view.width_px;
+  data.height = view.height_px;
+  const cv::Rect in_window = MaskRect(window);
+  if (!in_window.empty()) {
+    data.roi = in_window + origin;
+    data.window =
+        cv::Rect(data.roi.x - kWindowMarginPx, data.roi.y - kWindowMarginPx,
+                 data.roi.width + 2 * kWindowMarginPx, data.roi.height + 2 * kWindowMarginPx) &
+        image;
+    data.mask01 = cv::Mat::zeros(data.window.size(), CV_8UC1);
+    const cv::Rect both = held & data.window;
+    cv::min(window(both - origin), 1, data.mask01(both - data.window.tl()));
+  }
+  PackMask(data.mask01, data.roi - data.window.tl(), &data.packed, &data.packed_words);
   return data;
 }
 
@@ -209,11 +241,11 @@ Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const Vi
 
 VisualHull::Sat VisualHull::MakeSat(const ViewData& view) {
   Sat sat;
-  sat.width = view.mask01.cols;
-  sat.height = view.mask01.rows;
+  sat.width = view.width;
+  sat.height = view.height;
   sat.roi = view.roi;
   if (!sat.roi.empty()) {
-    cv::integral(view.mask01(sat.roi), sat.sum, CV_32S);
+    cv::integral(view.mask01(sat.roi - view.window.tl()), sat.sum, CV_32S);
   }
   return sat;
 }
@@ -322,9 +354,15 @@ VisualHull::BlockClass VisualHull::ClassifyRect(const ViewData& view, const Sat&
   std::int64_t mask_count = 0;
   if (area <= kDirectCountMaxArea) {
     // Small rectangles (surface edges): the 0/1 mask itself is closer in cache than the table.
-    for (int v = cv0; v <= cv1; ++v) {
+    // Within the held window (0 outside it).
+    const cv::Rect& held = view.window;
+    const int hu0 = std::max(cu0, held.x) - held.x;
+    const int hu1 = std::min(cu1, held.x + held.width - 1) - held.x;
+    const int hv0 = std::max(cv0, held.y) - held.y;
+    const int hv1 = std::min(cv1, held.y + held.height - 1) - held.y;
+    for (int v = hv0; v <= hv1; ++v) {
       const std::uint8_t* row = view.mask01.ptr<std::uint8_t>(v);
-      for (int u = cu0; u <= cu1; ++u) {
+      for (int u = hu0; u <= hu1; ++u) {
         mask_count += row[u];
       }
     }
@@ -339,7 +377,11 @@ VisualHull::BlockClass VisualHull::ClassifyRect(const ViewData& view, const Sat&
   if (mask_count == 0 && rect_inside) {
     return BlockClass::kCarve;
   }
-  return rect_inside ? BlockClass::kMixedInImage : BlockClass::kMixed;
+  // The vectors' test reads the held window only.
+  const cv::Rect& held = view.window;
+  const bool rect_held =
+      u0 >= held.x && v0 >= held.y && u1 < held.x + held.width && v1 < held.y + held.height;
+  return rect_held ? BlockClass::kMixedInImage : BlockClass::kMixed;
 }
 
 namespace {
@@ -356,7 +398,7 @@ namespace {
 std::uint64_t
 CarvedInBrickInImage(const double (*px)[3], const double (*py)[3], const double (*pz)[3],
                      double p03, double p13, double p23, std::uint64_t word,
-                     const std::uint8_t* mask, std::size_t step) {
+                     const std::uint8_t* mask, std::size_t step, int mask_u0, int mask_v0) {
   using Double4 = double __attribute__((vector_size(32)));
   using Int4 = std::int32_t __attribute__((vector_size(16)));
   Double4 row_x[3];
@@ -377,7 +419,8 @@ CarvedInBrickInImage(const double (*px)[3], const double (*py)[3], const double 
     for (int x = 0; x < 4; ++x) {
       // Only occupied voxels are read: those past the grid's end may project out of the image.
       const bool carve = ((occupied >> x) & 1) != 0 && hw[x] > 0.0 &&
-                         mask[step * static_cast<std::size_t>(iv[x]) + iu[x]] == 0;
+                         mask[step * static_cast<std::size_t>(iv[x] - mask_v0) +
+                              static_cast<std::size_t>(iu[x] - mask_u0)] == 0;
       bits |= std::uint64_t{carve} << x;
     }
     carved |= bits << (4 * row);
@@ -409,7 +452,7 @@ bool VisualHull::CarveBrick(const ViewData& view, const Eigen::Vector3i& brick) 
   std::uint64_t carved = 0;
   if constexpr (kInImage) {
     carved = CarvedInBrickInImage(px, py, pz, p(0, 3), p(1, 3), p(2, 3), word, view.mask01.data,
-                                  view.mask01.step[0]);
+                                  view.mask01.step[0], view.window.x, view.window.y);
   } else {
     for (std::uint64_t remaining = word; remaining != 0; remaining &= remaining - 1) {
       const int bit = std::countr_zero(remaining);
@@ -561,6 +604,17 @@ Expected<void> VisualHull::Integrate(const cv::Mat& mask, const View& view) {
 
 Expected<VisualHull::PreparedView> VisualHull::PrepareView(const cv::Mat& mask, const View& view) {
   Expected<ViewData> data = Prepare(mask, view);
+  if (!data) {
+    return std::unexpected(data.error());
+  }
+  PreparedView prepared;
+  prepared.data_ = std::make_shared<const ViewData>(std::move(*data));
+  return prepared;
+}
+
+Expected<VisualHull::PreparedView> VisualHull::PrepareView(const cv::Mat& window, cv::Point origin,
+                                                           const View& view) {
+  Expected<ViewData> data = PrepareWindow(window, origin, view);
   if (!data) {
     return std::unexpected(data.error());
   }

@@ -95,8 +95,8 @@ class VisualHull {
   int view_count() const { return static_cast<int>(views_.size()); }
 
   // Carves with one view (hierarchical). `mask`: CV_8UC1, view.height_px x view.width_px,
-  // non-zero = object. The mask is kept (as 0/1 bytes: width x height bytes per view, 442 KB
-  // at 768x576) for sub-voxel surface placement. Errors: bad_input for a wrong mask type or
+  // non-zero = object. The mask is kept (as 0/1 bytes over the rectangle of its pixels, a few
+  // pixels wider) for sub-voxel surface placement. Errors: bad_input for a wrong mask type or
   // size, or a non-finite projection.
   Expected<void> Integrate(const cv::Mat& mask, const View& view);
 
@@ -107,6 +107,12 @@ class VisualHull {
   class PreparedView;
   // Same contract and errors as Integrate's mask and view.
   static Expected<PreparedView> PrepareView(const cv::Mat& mask, const View& view);
+  // The same, from a window of the mask: `window` (CV_8UC1) holds the view's mask from `origin`
+  // on, within the view's image, and none of its non-zero pixels lies outside the window. The
+  // same view as PrepareView(whole mask, view), without a mask of the image's size. Errors:
+  // those of PrepareView, and bad_input when the window does not lie within the image.
+  static Expected<PreparedView> PrepareView(const cv::Mat& window, cv::Point origin,
+                                            const View& view);
   // Integrate with a prepared view: the same result as Integrate(mask, view). Precondition:
   // `view` came from PrepareView.
   void Integrate(const PreparedView& view);
@@ -156,8 +162,13 @@ class VisualHull {
  private:
   struct ViewData {
     Matrix34d pixel_from_object;
-    cv::Mat mask01;  // CV_8UC1, 0 or 1
-    cv::Rect roi;    // bounding rectangle of the non-zero pixels
+    int width = 0;  // the image's size (px)
+    int height = 0;
+    cv::Rect roi;  // bounding rectangle of the non-zero pixels, in the image (empty: none)
+    // mask01's rectangle in the image: roi grown by kWindowMarginPx, within the image (empty
+    // when roi is). The mask is held over it alone: every pixel of the image outside it is 0.
+    cv::Rect window;
+    cv::Mat mask01;  // CV_8UC1, 0 or 1, window's size
     // mask01 over roi, one bit per pixel, in rows of packed_words words: the surface
     // placement's tests read it.
     std::vector<std::uint64_t> packed;
@@ -195,10 +206,14 @@ class VisualHull {
 
  private:
   // kMixedInImage: kMixed, with every corner in front of the camera and the rectangle of
-  // nearest pixels inside the image (so are those of every point of the block).
+  // nearest pixels inside the image and inside the view's held window (so are those of every
+  // point of the block).
   enum class BlockClass { kUnaffected, kCarve, kMixed, kMixedInImage };
 
   static Expected<ViewData> Prepare(const cv::Mat& mask, const View& view);
+  // Prepare from a window of the mask (PrepareView's second form).
+  static Expected<ViewData> PrepareWindow(const cv::Mat& window, cv::Point origin,
+                                          const View& view);
   // Carves with a prepared view (Integrate's work after Prepare).
   void Carve(const ViewData& view, const Sat& sat);
   // The point test for voxel (i, j, k): true = survives `view`.

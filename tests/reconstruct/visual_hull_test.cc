@@ -221,6 +221,63 @@ TEST(VisualHull, LeaveOneOutEqualsIntegratingTheOtherViews) {
   }
 }
 
+// A view prepared from a window of its mask is the view its whole mask gives: the same hulls and
+// the same surfaces (placed on the silhouettes' edges), for windows tight around the mask,
+// loose, the whole image, against the image's edges, and for an empty mask; a window past the
+// image is refused.
+TEST(VisualHull, AViewPreparedFromAWindowIsItsWholeMasks) {
+  std::mt19937 rng(17);
+  const Rig rig = StationRig(300.0, 25.0, 40.0, 200, 150);
+  const VoxelGrid grid = Grid({-50, -50, 0}, {50, 50, 90}, 40);
+  std::vector<cv::Mat> masks;
+  std::vector<View> views;
+  std::vector<VisualHull::PreparedView> windows;
+  for (int k = 0; k < 6; ++k) {
+    cv::Mat mask = IrregularMask(rig, 60.0 * k, &rng);
+    if (k == 2) cv::rectangle(mask, cv::Rect(0, 100, 30, 50), cv::Scalar(255), cv::FILLED);
+    if (k == 5) mask.setTo(0);  // left out of the hulls below: it would carve them all away
+    const cv::Rect image(0, 0, mask.cols, mask.rows);
+    const cv::Rect tight = cv::boundingRect(mask);
+    cv::Rect window = tight;  // k 0, 2, 5 (empty: 0 x 0 at the origin)
+    if (k == 1)
+      window = cv::Rect(tight.x - 5, tight.y - 3, tight.width + 9, tight.height + 7) & image;
+    if (k == 3) window = image;
+    if (k == 4) window = cv::Rect(tight.x, 0, tight.width, mask.rows);
+    masks.push_back(mask);
+    views.push_back(ViewOf(rig, 60.0 * k));
+    Expected<VisualHull::PreparedView> prepared =
+        VisualHull::PrepareView(mask(window).clone(), window.tl(), views.back());
+    ASSERT_TRUE(prepared) << k;
+    EXPECT_EQ(prepared->mask_rect(), tight) << k;
+    windows.push_back(*prepared);
+  }
+  const VisualHull::LeaveOneOut hulls(
+      grid, std::vector<VisualHull::PreparedView>(windows.begin(), windows.end() - 1));
+  for (std::size_t i = 0; i + 1 < masks.size(); ++i) {
+    VisualHull expected(grid);
+    for (std::size_t j = 0; j + 1 < masks.size(); ++j) {
+      if (j != i) {
+        ASSERT_TRUE(expected.Integrate(masks[j], views[j]));
+      }
+    }
+    const VisualHull got = hulls.Without(i);
+    ExpectSameOccupancy(got, expected);
+    ASSERT_GT(expected.OccupiedCount(), 100) << i;
+    const Mesh a = got.ExtractSurface();
+    const Mesh b = expected.ExtractSurface();
+    EXPECT_EQ(a.vertices, b.vertices) << "view " << i;
+    EXPECT_EQ(a.faces, b.faces) << "view " << i;
+  }
+  // The empty mask's view alone: it carves what it sees.
+  VisualHull empty(grid);
+  ASSERT_TRUE(empty.Integrate(masks[5], views[5]));
+  ExpectSameOccupancy(VisualHull::LeaveOneOut(grid, {windows[5], windows[0]}).Without(1), empty);
+  const Expected<VisualHull::PreparedView> past = VisualHull::PrepareView(
+      cv::Mat(20, 20, CV_8UC1, cv::Scalar(255)), cv::Point(190, 10), views[0]);
+  ASSERT_FALSE(past);
+  EXPECT_EQ(past.error().code, ErrorCode::kBadInput);
+}
+
 // Tolerating one carve: a voxel of hull i survives when at most one of the other views carves it
 // (each view's own carve counted voxel by voxel), however many views there are.
 TEST(VisualHull, LeaveOneOutToleratingOneKeepsWhatOnlyOneOtherViewCarves) {
