@@ -175,18 +175,13 @@ void PackMask(const cv::Mat& mask01, const cv::Rect& roi, std::vector<std::uint6
 }  // namespace hull_internal
 
 Expected<VisualHull::ViewData> VisualHull::Prepare(const cv::Mat& mask, const View& view) {
-  if (view.width_px <= 0 || view.height_px <= 0) {
-    return MakeError(ErrorCode::kBadInput,
-                     fmt::format("view has no image size ({}x{})", view.width_px, view.height_px));
-  }
-  if (mask.type() != CV_8UC1 || mask.cols != view.width_px || mask.rows != view.height_px) {
+  // A whole mask: the window of the whole image (the view's other checks are PrepareWindow's).
+  if (view.width_px > 0 && view.height_px > 0 &&
+      (mask.type() != CV_8UC1 || mask.cols != view.width_px || mask.rows != view.height_px)) {
     return MakeError(ErrorCode::kBadInput,
                      fmt::format("silhouette mask must be CV_8UC1 {}x{} (the view's size), got "
                                  "type {} {}x{}",
                                  view.width_px, view.height_px, mask.type(), mask.cols, mask.rows));
-  }
-  if (!view.pixel_from_object.allFinite()) {
-    return MakeError(ErrorCode::kBadInput, "view projection matrix is not finite");
   }
   return PrepareWindow(mask, cv::Point(0, 0), view);
 }
