@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <numbers>
 #include <numeric>
 #include <vector>
@@ -35,23 +36,84 @@ struct CarveResult {
   bool touches = false;
 };
 
+// p * [x; 1] rounded as Eigen rounds `p.leftCols<3>() * x + p.col(3)` (what this file projected
+// with before): the first two rows as ((p0 x + p1 y) + p2 z) + p3, the third as (p0 x + (p1 y +
+// p2 z)) + p3. Written out to be inlined (Eigen's is a call per point); the same values, so the
+// same cells survive.
+[[gnu::always_inline]] inline Eigen::Vector3d Homogeneous(const Matrix34d& p,
+                                                          const Eigen::Vector3d& x) {
+  return {((p(0, 0) * x.x() + p(0, 1) * x.y()) + p(0, 2) * x.z()) + p(0, 3),
+          ((p(1, 0) * x.x() + p(1, 1) * x.y()) + p(1, 2) * x.z()) + p(1, 3),
+          (p(2, 0) * x.x() + (p(2, 1) * x.y() + p(2, 2) * x.z())) + p(2, 3)};
+}
+
 // Views that must see a cell for tolerated misses to count (AutoVolumeOptions).
 constexpr int kMinViewsToOutvote = 8;
+
+// A silhouette one bit a pixel over its MaskRect (image pixels): the coarse passes read it at
+// random, a pixel from each view for each cell, and the bits of all the views fit the caches
+// where their bytes do not.
+class PackedSilhouette {
+ public:
+  PackedSilhouette() = default;
+  // `mask` holds its view's image from `origin` on; `rect`: its MaskRect, in image pixels.
+  PackedSilhouette(const cv::Mat& mask, cv::Point origin, const cv::Rect& rect)
+      : rect_(rect), words_((rect.width + 63) / 64) {
+    bits_.assign(static_cast<std::size_t>(words_) * static_cast<std::size_t>(rect.height), 0);
+    for (int y = 0; y < rect.height; ++y) {
+      const std::uint8_t* row = mask.ptr<std::uint8_t>(rect.y - origin.y + y) + (rect.x - origin.x);
+      std::uint64_t* out = &bits_[static_cast<std::size_t>(y) * words_];
+      int x = 0;
+      for (; x + 8 <= rect.width; x += 8) {
+        std::uint64_t bytes;
+        std::memcpy(&bytes, row + x, 8);
+        // Each byte to 0 or 1 (any bit set), then each byte gathers its 7 successors' bits
+        // above its own.
+        bytes |= bytes >> 4;
+        bytes |= bytes >> 2;
+        bytes |= bytes >> 1;
+        bytes &= 0x0101010101010101ull;
+        bytes |= bytes >> 7;
+        bytes |= bytes >> 14;
+        bytes |= bytes >> 28;
+        out[x >> 6] |= (bytes & 0xFF) << (x & 63);
+      }
+      for (; x < rect.width; ++x) out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
+    }
+  }
+  const cv::Rect& rect() const { return rect_; }
+  // Whether image pixel (u, v) is on the silhouette (off outside the rectangle).
+  bool On(int u, int v) const {
+    const auto x = static_cast<unsigned>(u - rect_.x);
+    const auto y = static_cast<unsigned>(v - rect_.y);
+    if (x >= static_cast<unsigned>(rect_.width) || y >= static_cast<unsigned>(rect_.height)) {
+      return false;
+    }
+    return ((bits_[static_cast<std::size_t>(y) * words_ + (x >> 6)] >> (x & 63)) & 1u) != 0;
+  }
+
+ private:
+  cv::Rect rect_;
+  int words_ = 0;
+  std::vector<std::uint64_t> bits_;
+};
 
 // Whether the cell centre `x` survives (AutoVolumeOptions). The views are tried in the order
 // `order` (a permutation of them): the answer is the same in any order (a cell falls once more
 // than `tolerated` views miss it, whichever they are), and a view that misses it is moved to the
-// front, so that the next cells, its neighbours, meet the views that miss them first.
-// `origins`: each mask's window origin (empty: whole masks), as CarvingVolumeFromSilhouettes's.
-bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<cv::Point>& origins,
-                  const std::vector<View>& views, const Eigen::Vector3d& x, int seen_needed,
-                  int tolerated, std::vector<std::size_t>* order) {
+// front, so that the next cells, its neighbours, meet the views that miss them first. Built for
+// AVX2 too where the processor has it (floor is an instruction there; the same values).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+bool CellSurvives(const std::vector<PackedSilhouette>& silhouettes, const std::vector<View>& views,
+                  const Eigen::Vector3d& x, int seen_needed, int tolerated,
+                  std::vector<std::size_t>* order) {
   int seen = 0;
   int misses = 0;
   for (std::size_t n = 0; n < order->size(); ++n) {
     const std::size_t v = (*order)[n];
-    const Matrix34d& p = views[v].pixel_from_object;
-    const Eigen::Vector3d h = p.leftCols<3>() * x + p.col(3);
+    const Eigen::Vector3d h = Homogeneous(views[v].pixel_from_object, x);
     if (!(h.z() > 0.0)) continue;
     // An affine view's depth is exactly 1 (the thesis's): its division, exact, is left out.
     const bool unit_depth = h.z() == 1.0;
@@ -59,13 +121,7 @@ bool CellSurvives(const std::vector<cv::Mat>& masks, const std::vector<cv::Point
     const double w = std::floor((unit_depth ? h.y() : h.y() / h.z()) + 0.5);
     if (!(u >= 0.0 && w >= 0.0 && u < views[v].width_px && w < views[v].height_px)) continue;
     ++seen;
-    // The pixel in the mask's window (off the silhouette outside it).
-    const cv::Mat& mask = masks[v];
-    const int column = static_cast<int>(u) - (origins.empty() ? 0 : origins[v].x);
-    const int row = static_cast<int>(w) - (origins.empty() ? 0 : origins[v].y);
-    const bool in_window = static_cast<unsigned>(column) < static_cast<unsigned>(mask.cols) &&
-                           static_cast<unsigned>(row) < static_cast<unsigned>(mask.rows);
-    if (!in_window || mask.at<std::uint8_t>(row, column) == 0) {
+    if (!silhouettes[v].On(static_cast<int>(u), static_cast<int>(w))) {
       std::rotate(order->begin(), order->begin() + static_cast<std::ptrdiff_t>(n),
                   order->begin() + static_cast<std::ptrdiff_t>(n) + 1);
       if (++misses > tolerated) return false;
@@ -80,10 +136,10 @@ constexpr std::size_t kBlockViews = 4;
 
 // Coarse carving of cell centres (see AutoVolumeOptions), the layers of cells on all cores; the
 // index range of the survivors is an exact minimum and maximum over the layers' (and over each
-// row's first and last survivor). `rects`: each mask's MaskRect, in its view's image.
-CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv::Point>& origins,
-                        const std::vector<cv::Rect>& rects, const std::vector<View>& views,
-                        const Box& box, const AutoVolumeOptions& options) {
+// row's first and last survivor).
+CarveResult CoarseCarve(const std::vector<PackedSilhouette>& silhouettes,
+                        const std::vector<View>& views, const Box& box,
+                        const AutoVolumeOptions& options) {
   CarveResult result;
   const Eigen::Vector3d size = box.Size();
   result.cell = size.maxCoeff() / options.resolution;
@@ -109,8 +165,8 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv:
       return result.origin + result.cell * Eigen::Vector3d(i + 0.5, j + 0.5, k + 0.5);
     };
     const auto survives = [&](int i, int j) {
-      return CellSurvives(masks, origins, views, centre(i, j), seen_needed,
-                          options.tolerated_misses, &order);
+      return CellSurvives(silhouettes, views, centre(i, j), seen_needed, options.tolerated_misses,
+                          &order);
     };
     // Whether every cell i0..i1 of row j falls for certain, from the line through their centres:
     // more than `tolerated_misses` of the first kBlockViews views (in `order`) see all of it in
@@ -126,7 +182,7 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv:
         const Matrix34d& p = views[v].pixel_from_object;
         double u[2], w[2], depth[2];
         for (int e = 0; e < 2; ++e) {
-          const Eigen::Vector3d h = p.leftCols<3>() * ends[e] + p.col(3);
+          const Eigen::Vector3d h = Homogeneous(p, ends[e]);
           depth[e] = h.z();
           u[e] = h.z() == 1.0 ? h.x() : h.x() / h.z();
           w[e] = h.z() == 1.0 ? h.y() : h.y() / h.z();
@@ -141,7 +197,7 @@ CarveResult CoarseCarve(const std::vector<cv::Mat>& masks, const std::vector<cv:
               w_hi < views[v].height_px)) {
           continue;
         }
-        const cv::Rect& r = rects[v];
+        const cv::Rect& r = silhouettes[v].rect();
         const bool apart = r.empty() || u_hi < r.x || u_lo >= r.x + r.width || w_hi < r.y ||
                            w_lo >= r.y + r.height;
         if (apart && ++misses > options.tolerated_misses) return true;
@@ -399,9 +455,12 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   // The search box: the silhouettes' extents around the centre.
   double radius = 0.0;
   std::vector<cv::Rect> rects(masks.size());
+  std::vector<PackedSilhouette> silhouettes(masks.size());
   ParallelFor(0, masks.size(), [&](std::size_t i) {
+    const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
     rects[i] = MaskRect(masks[i]);
-    if (!rects[i].empty() && !mask_origins.empty()) rects[i] += mask_origins[i];
+    if (!rects[i].empty()) rects[i] += origin;
+    silhouettes[i] = PackedSilhouette(masks[i], origin, rects[i]);
   });
   for (std::size_t i = 0; i < masks.size(); ++i) {
     const cv::Rect& rect = rects[i];
@@ -425,7 +484,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
              *centre + Eigen::Vector3d::Constant(1.5 * radius)};
   CarveResult carve;
   for (int attempt = 0;; ++attempt) {
-    carve = CoarseCarve(masks, mask_origins, rects, views, search, options);
+    carve = CoarseCarve(silhouettes, views, search, options);
     if (!carve.any) {
       return MakeError(ErrorCode::kBadInput,
                        "no point lies inside every silhouette that sees it: the cameras do not "
@@ -436,7 +495,7 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
   }
   result.touches_limit = carve.touches;
   const Box first = SurvivorsBox(carve, options.margin_cells);
-  carve = CoarseCarve(masks, mask_origins, rects, views, first, options);
+  carve = CoarseCarve(silhouettes, views, first, options);
   result.box = carve.any ? SurvivorsBox(carve, options.margin_cells) : first;
   Logger("reconstruct")
       ->debug(
