@@ -446,7 +446,23 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
                                    views_in[i].height_px));
     }
   }
-  Expected<Eigen::Vector3d> centre = SilhouetteCentre(masks, views_in, mask_origins);
+  // Each silhouette's rectangle (in its image) and its bits over it; the centre from the pixels
+  // in the rectangles alone (the same moments: none is set outside).
+  std::vector<cv::Rect> rects(masks.size());
+  std::vector<PackedSilhouette> silhouettes(masks.size());
+  std::vector<cv::Mat> within(masks.size());
+  ParallelFor(0, masks.size(), [&](std::size_t i) {
+    const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
+    rects[i] = MaskRect(masks[i]);
+    if (!rects[i].empty()) {
+      within[i] = masks[i](rects[i]);
+      rects[i] += origin;
+    }
+    silhouettes[i] = PackedSilhouette(masks[i], origin, rects[i]);
+  });
+  std::vector<cv::Point> within_origins(masks.size());
+  for (std::size_t i = 0; i < masks.size(); ++i) within_origins[i] = rects[i].tl();
+  Expected<Eigen::Vector3d> centre = SilhouetteCentre(within, views_in, within_origins);
   if (!centre) return std::unexpected(centre.error());
   std::vector<View> views;
   views.reserve(views_in.size());
@@ -454,14 +470,6 @@ Expected<AutoVolume> CarvingVolumeFromSilhouettes(const std::vector<cv::Mat>& ma
 
   // The search box: the silhouettes' extents around the centre.
   double radius = 0.0;
-  std::vector<cv::Rect> rects(masks.size());
-  std::vector<PackedSilhouette> silhouettes(masks.size());
-  ParallelFor(0, masks.size(), [&](std::size_t i) {
-    const cv::Point origin = mask_origins.empty() ? cv::Point() : mask_origins[i];
-    rects[i] = MaskRect(masks[i]);
-    if (!rects[i].empty()) rects[i] += origin;
-    silhouettes[i] = PackedSilhouette(masks[i], origin, rects[i]);
-  });
   for (std::size_t i = 0; i < masks.size(); ++i) {
     const cv::Rect& rect = rects[i];
     if (rect.area() == 0) continue;
