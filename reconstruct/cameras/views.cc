@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <numbers>
 #include <numeric>
 #include <vector>
@@ -14,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "base/log.h"
+#include "base/mask_bits.h"
 #include "base/mask_rect.h"
 #include "reconstruct/parallel.h"
 
@@ -58,29 +58,9 @@ class PackedSilhouette {
   PackedSilhouette() = default;
   // `mask` holds its view's image from `origin` on; `rect`: its MaskRect, in image pixels.
   PackedSilhouette(const cv::Mat& mask, cv::Point origin, const cv::Rect& rect)
-      : rect_(rect), words_((rect.width + 63) / 64) {
-    bits_.assign(static_cast<std::size_t>(words_) * static_cast<std::size_t>(rect.height), 0);
-    for (int y = 0; y < rect.height; ++y) {
-      const std::uint8_t* row = mask.ptr<std::uint8_t>(rect.y - origin.y + y) + (rect.x - origin.x);
-      std::uint64_t* out = &bits_[static_cast<std::size_t>(y) * words_];
-      int x = 0;
-      for (; x + 8 <= rect.width; x += 8) {
-        std::uint64_t bytes;
-        std::memcpy(&bytes, row + x, 8);
-        // Each byte to 0 or 1 (any bit set), then each byte gathers its 7 successors' bits
-        // above its own.
-        bytes |= bytes >> 4;
-        bytes |= bytes >> 2;
-        bytes |= bytes >> 1;
-        bytes &= 0x0101010101010101ull;
-        bytes |= bytes >> 7;
-        bytes |= bytes >> 14;
-        bytes |= bytes >> 28;
-        out[x >> 6] |= (bytes & 0xFF) << (x & 63);
-      }
-      for (; x < rect.width; ++x) out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
-    }
-  }
+      : rect_(rect),
+        words_((rect.width + 63) / 64),
+        bits_(PackMaskBits(mask, rect - origin, words_)) {}
   const cv::Rect& rect() const { return rect_; }
   // Whether image pixel (u, v) is on the silhouette (off outside the rectangle).
   bool On(int u, int v) const {

@@ -4,7 +4,6 @@
 #include <array>
 #include <bit>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -12,6 +11,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "base/mask_bits.h"
 #include "base/mask_rect.h"
 #include "reconstruct/hull/hull_internal.h"
 #include "reconstruct/hull/marching_cubes.h"
@@ -152,24 +152,7 @@ namespace hull_internal {
 void PackMask(const cv::Mat& mask01, const cv::Rect& roi, std::vector<std::uint64_t>* bits,
               int* words) {
   *words = (roi.width + 63) / 64 + 1;
-  bits->assign(static_cast<std::size_t>(*words) * std::max(roi.height, 0), 0);
-  for (int y = 0; y < roi.height; ++y) {
-    const std::uint8_t* row = mask01.ptr<std::uint8_t>(roi.y + y) + roi.x;
-    std::uint64_t* out = &(*bits)[static_cast<std::size_t>(y) * *words];
-    int x = 0;
-    // 8 pixels (0/1 bytes) to 8 bits: each byte gathers its 7 successors' bits above its own.
-    for (; x + 8 <= roi.width; x += 8) {
-      std::uint64_t bytes;
-      std::memcpy(&bytes, row + x, 8);
-      bytes |= bytes >> 7;
-      bytes |= bytes >> 14;
-      bytes |= bytes >> 28;
-      out[x >> 6] |= (bytes & 0xFF) << (x & 63);
-    }
-    for (; x < roi.width; ++x) {
-      out[x >> 6] |= std::uint64_t{row[x] != 0} << (x & 63);
-    }
-  }
+  *bits = PackMaskBits(mask01, roi, *words);
 }
 
 }  // namespace hull_internal
