@@ -79,6 +79,13 @@ async function main() {
         document.querySelectorAll('#downloads a').length > 0, { timeout: 30000 });
     report.downloads = await page.evaluate(() => [...document.querySelectorAll('#downloads a')].map((a) => a.textContent));
     report.figures = await page.evaluate(() => [...document.querySelectorAll('#report dt')].map((d) => d.textContent));
+    // The scans list and its thumbnail load after the report (on a loaded machine, seconds
+    // after): waited for, then read; a thumbnail that never loads reads false.
+    const thumbnailLoaded = () => {
+      const img = document.querySelector('#scans li img');
+      return !!img && img.complete && img.naturalWidth > 0;
+    };
+    await page.waitForFunction(thumbnailLoaded, { timeout: 30000 }).catch(() => {});
     report.scans_listed = await page.evaluate(() => document.querySelectorAll('#scans li').length);
     report.thumbnail = await page.evaluate(() => {
       const img = document.querySelector('#scans li img');
