@@ -142,13 +142,18 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
 // Receives view i's silhouette (nullopt: as SilhouetteFromOutline's).
 using SilhouetteSink = std::function<void(std::size_t i, std::optional<BoxedSilhouette>)>;
 
-// SilhouetteFromOutline(mesh, index, views[i]) for every view (the same pixels and box), on all
-// cores: `use` is called once per view, from any thread, for several views at once. The views
-// whose faces the planes decide (every vertex in front, decided by the mesh's sphere) are taken
-// 32 at a time: each face is signed in all of them with its plane read once, and the outlines
-// of all of them come from one pass over the faces and their neighbours (one bit per view),
-// instead of one pass per view. The other views one by one. Precondition: index.closed(), built
-// from `mesh`.
+// SilhouetteFromOutline(mesh, index, views[i]) for every view (the same pixels; the same box,
+// or within it, below), on all cores: `use` is called once per view, from any thread, for
+// several views at once. The views whose faces the planes decide (every vertex in front,
+// decided by the mesh's sphere) are taken 32 at a time: each face is signed in all of them with
+// its plane read once, and the outlines of all of them come from one pass over the faces and
+// their neighbours (one bit per view), instead of one pass per view. When those views all put a
+// vertex on the same row (orthographic, one second row: the thesis's views, whose rows are the
+// heights), an edge whose ends lie between the same two rows adds no pixel in any of them: such
+// edges are left out of the outlines, and faces all of whose edges are such are not signed. The
+// box is then the rectangle of the outline left, which can be smaller (the pixels outside it
+// are off either way). The other views one by one. Precondition: index.closed(), built from
+// `mesh`.
 void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
                             const std::vector<View>& views, const SilhouetteSink& use);
 

@@ -324,6 +324,38 @@ TEST(Outline, AllViewsAtOnceGiveEachViewsSilhouette) {
   }
 }
 
+// Views that put every vertex on the same row (the thesis's: the rows are the heights): the
+// edges between two rows are left out of the outlines and the faces between two rows not signed,
+// and the pixels are still each view's alone; the box is within that view's. 38 views (two
+// batches), on hulls with exact crossings and with midpoints (many corners exactly on a row:
+// an edge that only touches a row there still sets its pixels).
+TEST(Outline, ViewsSharingTheirRowsGiveEachViewsPixels) {
+  std::vector<View> views;
+  views.reserve(38);
+  for (int k = 0; k < 36; ++k) views.push_back(ThesisView(320, 240, 10.0 * k));
+  for (const double angle : {35.0, -90.0}) views.push_back(ThesisView(320, 240, angle));
+  for (const Mesh& mesh : HullMeshes()) {
+    const OutlineIndex index(mesh);
+    ASSERT_TRUE(index.closed());
+    std::vector<std::optional<BoxedSilhouette>> together(views.size());
+    std::mutex mutex;
+    outline_internal::SilhouettesFromOutline(
+        mesh, index, views, [&](std::size_t i, std::optional<BoxedSilhouette> silhouette) {
+          const std::lock_guard<std::mutex> lock(mutex);
+          together[i] = std::move(silhouette);
+        });
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      const std::optional<BoxedSilhouette> alone = SilhouetteFromOutline(mesh, index, views[v]);
+      ASSERT_TRUE(alone.has_value()) << v;
+      ASSERT_TRUE(together[v].has_value()) << v;
+      const cv::Mat a = Whole(*alone, views[v]);
+      EXPECT_GT(cv::countNonZero(a), 0) << v;
+      EXPECT_EQ(cv::countNonZero(a != Whole(*together[v], views[v])), 0) << v;
+      EXPECT_EQ(together[v]->box & alone->box, together[v]->box) << v;
+    }
+  }
+}
+
 // A tetrahedron's four faces, outward, on vertices first .. first + 3.
 void AddTetrahedron(Mesh* mesh, const Eigen::Vector3f& corner) {
   const int first = static_cast<int>(mesh->vertices.size());
