@@ -444,12 +444,12 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   return neighbours;
 }
 
-OutlineIndex::OutlineIndex(const Mesh& mesh) {
-  // The neighbours (mostly one thread's work) beside the planes (on the cores left).
-  ParallelInvoke([&] { neighbours_ = FaceNeighbours(mesh); }, [&] { MeasureFaces(mesh); });
+OutlineIndex::OutlineIndex(const Mesh& mesh) : mesh_(&mesh) {
+  // The neighbours (mostly one thread's work) beside the sphere (on the cores left).
+  ParallelInvoke([&] { neighbours_ = FaceNeighbours(mesh); }, [&] { MeasureSphere(mesh); });
 }
 
-void OutlineIndex::MeasureFaces(const Mesh& mesh) {
+void OutlineIndex::MeasureSphere(const Mesh& mesh) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   for (const Eigen::Vector3f& v : mesh.vertices) {
@@ -465,6 +465,11 @@ void OutlineIndex::MeasureFaces(const Mesh& mesh) {
     r2 = std::max(r2, (v.cast<double>() - mesh_centre_).squaredNorm());
   }
   mesh_radius_ = std::sqrt(r2) * (1.0 + 1e-9);
+}
+
+void OutlineIndex::MeasureFaces() const {
+  if (!finite_) return;  // no planes: no view reads them
+  const Mesh& mesh = *mesh_;
   const std::size_t face_count = mesh.faces.size();
   for (std::vector<float>* v : {&normal_x_, &normal_y_, &normal_z_, &offset_, &height_}) {
     v->resize(face_count);
@@ -668,7 +673,7 @@ void PlaneBits(const FacePlanes& planes, const PlaneTest& test, std::size_t begi
 // Each view's outline edges in SilhouetteFromOutline's order (faces, then corners).
 void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::vector<View>& views,
                         const std::vector<std::size_t>& batch, const std::vector<PlaneTest>& tests,
-                        const std::uint8_t* rows_reached, const SilhouetteSink& use) {
+                        const SilhouetteSink& use) {
   const std::size_t face_count = mesh.faces.size();
   const std::size_t view_count = batch.size();
   const std::size_t chunk_count = (face_count + kBatchFaces - 1) / kBatchFaces;
@@ -685,15 +690,6 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
     ViewBits* chunk = positive.data() + begin;
     for (std::size_t b = 0; b < view_count; ++b) {
       PlaneBits(planes, tests[batch[b]], begin, end, ViewBits{1} << b, chunk, undecided.data());
-    }
-    // A face that reaches no row adds no pixel whichever way it faces: taken as not positive,
-    // not projected (its edges are not walked, below).
-    if (rows_reached != nullptr) {
-      for (std::size_t j = 0; j < end - begin; ++j) {
-        const ViewBits keep = rows_reached[begin + j] != 0 ? ~ViewBits{0} : 0;
-        chunk[j] &= keep;
-        undecided[j] &= keep;
-      }
     }
     // The faces a plane leaves undecided, projected in that view.
     for (std::size_t j = 0; j < end - begin; ++j) {
@@ -724,19 +720,13 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
       ViewBits views_out = positive[i] & ~(a & b & d);
       if (views_out == 0) continue;
       const Eigen::Vector3i& f = mesh.faces[i];
-      // The edges that reach a row (all of them without rows_reached): the others add nothing.
-      const unsigned reach = rows_reached != nullptr ? rows_reached[i] : 7u;
-      const ViewBits not_a = (reach & 1u) != 0 ? ~a : 0;
-      const ViewBits not_b = (reach & 2u) != 0 ? ~b : 0;
-      const ViewBits not_d = (reach & 4u) != 0 ? ~d : 0;
-      views_out &= not_a | not_b | not_d;
       for (; views_out != 0; views_out &= views_out - 1) {
         const int v = std::countr_zero(views_out);
         std::vector<std::array<int, 2>>& edges =
             outline[c * view_count + static_cast<std::size_t>(v)];
-        if ((not_a >> v) & 1u) edges.push_back({f[0], f[1]});
-        if ((not_b >> v) & 1u) edges.push_back({f[1], f[2]});
-        if ((not_d >> v) & 1u) edges.push_back({f[2], f[0]});
+        if (!((a >> v) & 1u)) edges.push_back({f[0], f[1]});
+        if (!((b >> v) & 1u)) edges.push_back({f[1], f[2]});
+        if (!((d >> v) & 1u)) edges.push_back({f[2], f[0]});
       }
     }
   });
@@ -762,70 +752,6 @@ void SilhouettesOfBatch(const Mesh& mesh, const OutlineIndex& index, const std::
   });
 }
 
-// Whether the views project every vertex to the same row coordinate: orthographic (third row
-// (0, 0, 0, 1), so that the row is h.y exactly) with the same second row, as the thesis's views
-// are (v = (height - 1) - z in all of them).
-bool SameRows(const std::vector<View>& views, const std::vector<std::size_t>& which) {
-  if (which.empty()) return false;
-  const Eigen::RowVector4d affine(0.0, 0.0, 0.0, 1.0);
-  const Eigen::RowVector4d row = views[which[0]].pixel_from_object.row(1);
-  return std::all_of(which.begin(), which.end(), [&](std::size_t i) {
-    const Matrix34d& p = views[i].pixel_from_object;
-    return p.row(2) == affine && p.row(1) == row;
-  });
-}
-
-// A vertex's row coordinate (as Projected computes it) and its floor.
-struct VertexRow {
-  double at, floor;
-};
-// rows[i] for the vertices [begin, end) in `view` (Homogeneous's second row, written out); built
-// for AVX2 too where the processor has it (floor is an instruction there, a call without it).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
-[[gnu::target_clones("avx2", "default")]]
-#endif
-void VertexRows(const View& view, const std::vector<Eigen::Vector3f>& vertices, std::size_t begin,
-                std::size_t end, VertexRow* __restrict rows) {
-  const Matrix34d& p = view.pixel_from_object;
-  const double p0 = p(1, 0), p1 = p(1, 1), p2 = p(1, 2), p3 = p(1, 3);
-  for (std::size_t i = begin; i < end; ++i) {
-    const Eigen::Vector3f& x = vertices[i];
-    const double v = ((p0 * static_cast<double>(x.x()) + p1 * static_cast<double>(x.y())) +
-                      p2 * static_cast<double>(x.z())) +
-                     p3;
-    rows[i] = {v, std::floor(v)};
-  }
-}
-
-// For views that share their rows (SameRows; `view` one of them): per face, bit e set when its
-// edge from corner e to corner e + 1 reaches a pixel row, that is, when its ends' row
-// coordinates have a whole number between them or at either end. Fill adds nothing for an edge
-// that reaches none; nor for a face that reaches none (its three edges span its rows),
-// whichever way it faces.
-std::vector<std::uint8_t> RowsReached(const Mesh& mesh, const View& view) {
-  std::vector<VertexRow> row(mesh.vertices.size());
-  ParallelChunks(0, row.size(), 16384, [&](std::size_t lo, std::size_t hi) {
-    VertexRows(view, mesh.vertices, lo, hi, row.data());
-  });
-  std::vector<std::uint8_t> reached(mesh.faces.size());
-  ParallelChunks(0, reached.size(), 16384, [&](std::size_t lo, std::size_t hi) {
-    for (std::size_t i = lo; i < hi; ++i) {
-      const Eigen::Vector3i& f = mesh.faces[i];
-      const VertexRow& r0 = row[static_cast<std::size_t>(f[0])];
-      const VertexRow& r1 = row[static_cast<std::size_t>(f[1])];
-      const VertexRow& r2 = row[static_cast<std::size_t>(f[2])];
-      // A whole number lies in [p, q] (p <= q) iff floor(q) >= p; and floor(max(p, q)) is
-      // max(floor(p), floor(q)).
-      const auto reaches = [](const VertexRow& a, const VertexRow& b) {
-        return static_cast<unsigned>(std::max(a.floor, b.floor) >= std::min(a.at, b.at));
-      };
-      reached[i] =
-          static_cast<std::uint8_t>(reaches(r0, r1) | reaches(r1, r2) << 1 | reaches(r2, r0) << 2);
-    }
-  });
-  return reached;
-}
-
 }  // namespace
 
 void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
@@ -842,15 +768,14 @@ void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
     if (batches.empty() || batches.back().size() == kBatchViews) batches.emplace_back();
     batches.back().push_back(i);
   }
+  // Views that share their rows (the thesis's) from the mesh's slices, when it can.
   std::vector<std::size_t> batched;
   for (const std::vector<std::size_t>& batch : batches) {
     batched.insert(batched.end(), batch.begin(), batch.end());
   }
-  const std::vector<std::uint8_t> rows_reached =
-      SameRows(views, batched) ? RowsReached(mesh, views[batched[0]]) : std::vector<std::uint8_t>();
+  if (SilhouettesFromSlices(mesh, index, views, batched, use)) batches.clear();
   for (const std::vector<std::size_t>& batch : batches) {
-    SilhouettesOfBatch(mesh, index, views, batch, tests,
-                       rows_reached.empty() ? nullptr : rows_reached.data(), use);
+    SilhouettesOfBatch(mesh, index, views, batch, tests, use);
   }
   tbb::enumerable_thread_specific<OutlineScratch> scratch;
   ParallelFor(0, alone.size(), [&](std::size_t k) {

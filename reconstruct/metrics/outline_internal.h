@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -67,7 +68,9 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
 // from which a view decides most faces' orientation without projecting them (a face's projected
 // area has the sign of (c - x) . n, c the camera's centre, times a sign of the camera's, or of
 // d . n for an orthographic view along d). Built once per mesh, read by any number of views at
-// once.
+// once. The planes are measured when first read (on all cores, once; thread-safe): views that
+// share their rows do without them (SilhouettesFromSlices). Holds a reference to `mesh`, which
+// must outlive it.
 class OutlineIndex {
  public:
   // Empty (closed() false) when the mesh is not closed and consistently oriented.
@@ -76,26 +79,34 @@ class OutlineIndex {
   bool closed() const { return !neighbours_.empty(); }
   const std::vector<Eigen::Vector3i>& neighbours() const { return neighbours_; }
   // Per face: the unit normal (0 when the face is degenerate), n . (its first vertex), and its
-  // smallest altitude.
-  const std::vector<float>& normal_x() const { return normal_x_; }
-  const std::vector<float>& normal_y() const { return normal_y_; }
-  const std::vector<float>& normal_z() const { return normal_z_; }
-  const std::vector<float>& offset() const { return offset_; }
-  const std::vector<float>& height() const { return height_; }
+  // smallest altitude (empty when finite() is false).
+  const std::vector<float>& normal_x() const { return Planes().normal_x_; }
+  const std::vector<float>& normal_y() const { return Planes().normal_y_; }
+  const std::vector<float>& normal_z() const { return Planes().normal_z_; }
+  const std::vector<float>& offset() const { return Planes().offset_; }
+  const std::vector<float>& height() const { return Planes().height_; }
   // Per face: bit a set when its three corners share coordinate a, bit for bit.
-  const std::vector<std::uint8_t>& shared_axes() const { return shared_axes_; }
+  const std::vector<std::uint8_t>& shared_axes() const { return Planes().shared_axes_; }
   // A sphere around every vertex; finite() false when some vertex is not finite.
   const Eigen::Vector3d& mesh_centre() const { return mesh_centre_; }
   double mesh_radius() const { return mesh_radius_; }
   bool finite() const { return finite_; }
 
  private:
-  // The sphere, finite_, and each face's plane, altitude and shared axes.
-  void MeasureFaces(const Mesh& mesh);
+  // The sphere and finite_.
+  void MeasureSphere(const Mesh& mesh);
+  // Each face's plane, altitude and shared axes.
+  void MeasureFaces() const;
+  const OutlineIndex& Planes() const {
+    std::call_once(planes_measured_, [this] { MeasureFaces(); });
+    return *this;
+  }
 
+  const Mesh* mesh_;
   std::vector<Eigen::Vector3i> neighbours_;
-  std::vector<float> normal_x_, normal_y_, normal_z_, offset_, height_;
-  std::vector<std::uint8_t> shared_axes_;
+  mutable std::once_flag planes_measured_;
+  mutable std::vector<float> normal_x_, normal_y_, normal_z_, offset_, height_;
+  mutable std::vector<std::uint8_t> shared_axes_;
   Eigen::Vector3d mesh_centre_ = Eigen::Vector3d::Zero();
   double mesh_radius_ = 0.0;
   bool finite_ = false;
@@ -142,20 +153,39 @@ std::optional<BoxedSilhouette> SilhouetteFromOutline(const Mesh& mesh, const Out
 // Receives view i's silhouette (nullopt: as SilhouetteFromOutline's).
 using SilhouetteSink = std::function<void(std::size_t i, std::optional<BoxedSilhouette>)>;
 
-// SilhouetteFromOutline(mesh, index, views[i]) for every view (the same pixels; the same box,
-// or within it, below), on all cores: `use` is called once per view, from any thread, for
-// several views at once. The views whose faces the planes decide (every vertex in front,
-// decided by the mesh's sphere) are taken 32 at a time: each face is signed in all of them with
-// its plane read once, and the outlines of all of them come from one pass over the faces and
-// their neighbours (one bit per view), instead of one pass per view. When those views all put a
-// vertex on the same row (orthographic, one second row: the thesis's views, whose rows are the
-// heights), an edge whose ends lie between the same two rows adds no pixel in any of them: such
-// edges are left out of the outlines, and faces all of whose edges are such are not signed. The
-// box is then the rectangle of the outline left, which can be smaller (the pixels outside it
-// are off either way). The other views one by one. Precondition: index.closed(), built from
-// `mesh`.
+// SilhouetteFromOutline(mesh, index, views[i]) for every view (the same pixels; the same box
+// but for views that share their rows, below), on all cores: `use` is called once per view, from
+// any thread, for several views at once. The views whose faces the planes decide (every vertex in
+// front, decided by the mesh's sphere) are taken together: when they all share their rows (the
+// thesis's), from the mesh's slices along those rows (SilhouettesFromSlices; the box is then the
+// set pixels' rectangle, within the outline's); else 32 at a time: each face is signed in all of
+// them with its plane read once, and the outlines of all of them come from one pass over the
+// faces and their neighbours (one bit per view), instead of one pass per view. The other views
+// one by one. Precondition: index.closed(), built from `mesh`.
 void SilhouettesFromOutline(const Mesh& mesh, const OutlineIndex& index,
                             const std::vector<View>& views, const SilhouetteSink& use);
+
+// Whether views[i] for every i in `which` puts a vertex on the same row: orthographic (third row
+// (0, 0, 0, 1)) with one second row, finite, as the thesis's views are (the row is
+// (height - 1) - z in each).
+bool ShareTheirRows(const std::vector<View>& views, const std::vector<std::size_t>& which);
+
+// SilhouetteFromOutline's pixels for the views `which` (ShareTheirRows), from the mesh's slices
+// along the rows they share: a row crosses the faces in closed loops (the fill's rule: an edge
+// crosses row r when its ends' rows are min <= r < max), each loop the boundary of one part of
+// the mesh's cross-section there, and a view's silhouette on that row is, for each loop, the
+// pixels from its least to its greatest u (each loop's points' u computed as Homogeneous's first
+// row, in the 3D points where the edges cross the row). The slices are cut once for all the
+// views; each view then reads only the loops' points. The box is the set pixels' rectangle.
+// Where a vertex or an edge lies exactly on a row with nothing of the mesh just below it (a
+// bottom, or a flat part facing down), the fill also sets the pixels the outline runs through
+// there: a view in which such a pixel is not the slices' is searched for its outline instead
+// (SilhouetteFromOutline). `use` is called once per view, from any thread. False, with `use` not
+// called, when the views do not share their rows, the mesh is not closed and consistently
+// oriented (`index`) or not finite, or a loop does not close.
+bool SilhouettesFromSlices(const Mesh& mesh, const OutlineIndex& index,
+                           const std::vector<View>& views, const std::vector<std::size_t>& which,
+                           const SilhouetteSink& use);
 
 // How SilhouetteReprojectionBy finds a closed mesh's silhouettes: SilhouetteFromEveryEdge (what
 // it did before the outline index, for the benchmark), SilhouetteFromOutline one view at a time,

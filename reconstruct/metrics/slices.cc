@@ -1,0 +1,409 @@
+// SilhouettesFromSlices: the silhouettes of views that share their rows (the thesis's) from the
+// mesh's slices along those rows.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include "reconstruct/metrics/outline_internal.h"
+#include "reconstruct/parallel.h"
+
+namespace revolve::reconstruct::outline_internal {
+namespace {
+
+// A vertex's row coordinate (as Projected computes it) and its floor.
+struct VertexRow {
+  double at, floor;
+};
+
+// rows[i] for the vertices [begin, end) in `view` (Homogeneous's second row, written out); built
+// for AVX2 too where the processor has it (floor is an instruction there, a call without it).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void VertexRows(const View& view, const std::vector<Eigen::Vector3f>& vertices, std::size_t begin,
+                std::size_t end, VertexRow* __restrict rows) {
+  const Matrix34d& p = view.pixel_from_object;
+  const double p0 = p(1, 0), p1 = p(1, 1), p2 = p(1, 2), p3 = p(1, 3);
+  for (std::size_t i = begin; i < end; ++i) {
+    const Eigen::Vector3f& x = vertices[i];
+    const double v = ((p0 * static_cast<double>(x.x()) + p1 * static_cast<double>(x.y())) +
+                      p2 * static_cast<double>(x.z())) +
+                     p3;
+    rows[i] = {v, std::floor(v)};
+  }
+}
+
+// The least and greatest u = ((p0 x + p1 y) + p2 z) + p3 (Homogeneous's first row) of the
+// points [0, count) (count > 0), into *lo and *hi: four running extremes, so that the loop runs
+// on vectors (built for AVX2 too where the processor has it). The points are finite, and which
+// of two equal values (or zeros) is kept does not matter.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
+[[gnu::target_clones("avx2", "default")]]
+#endif
+void ExtentOfPoints(const double* row0, const double* __restrict x, const double* __restrict y,
+                    const double* __restrict z, std::size_t count, double* lo, double* hi) {
+  const double p0 = row0[0], p1 = row0[1], p2 = row0[2], p3 = row0[3];
+  constexpr int kLanes = 4;
+  double least[kLanes], most[kLanes];
+  for (int k = 0; k < kLanes; ++k) {
+    least[k] = std::numeric_limits<double>::infinity();
+    most[k] = -std::numeric_limits<double>::infinity();
+  }
+  std::size_t i = 0;
+  for (; i + kLanes <= count; i += kLanes) {
+    for (int k = 0; k < kLanes; ++k) {
+      const double u = ((p0 * x[i + k] + p1 * y[i + k]) + p2 * z[i + k]) + p3;
+      least[k] = u < least[k] ? u : least[k];
+      most[k] = u > most[k] ? u : most[k];
+    }
+  }
+  for (; i < count; ++i) {
+    const double u = ((p0 * x[i] + p1 * y[i]) + p2 * z[i]) + p3;
+    least[0] = u < least[0] ? u : least[0];
+    most[0] = u > most[0] ? u : most[0];
+  }
+  *lo = std::min({least[0], least[1], least[2], least[3]});
+  *hi = std::max({most[0], most[1], most[2], most[3]});
+}
+
+// Whether a row coordinate p..q edge (either order) is crossed by row r: the fill's rule, rows
+// min <= r < max.
+bool Crosses(double p, double q, double r) { return std::min(p, q) <= r && r < std::max(p, q); }
+
+// One row's slices: the points where the mesh's edges cross it, cycle after cycle (each cycle
+// a closed loop of the faces that cross the row, its points in cycle_end's ranges).
+struct RowSlices {
+  std::vector<double> x, y, z;
+  std::vector<std::uint32_t> cycle_end;
+};
+
+// A vertex (a = b) or an edge a - b on row `row` with nothing of the mesh just below it.
+struct Bottom {
+  int row, a, b;
+};
+
+class Slicer {
+ public:
+  Slicer(const Mesh& mesh, const std::vector<Eigen::Vector3i>& neighbours, const View& view,
+         int rows)
+      : mesh_(mesh), neighbours_(neighbours), rows_(rows) {
+    row_.resize(mesh.vertices.size());
+    ParallelChunks(0, row_.size(), 16384, [&](std::size_t lo, std::size_t hi) {
+      VertexRows(view, mesh.vertices, lo, hi, row_.data());
+    });
+  }
+
+  // What lies on a row with nothing of the mesh just below it: vertices with no edge down from
+  // them (a = b), and edges both of whose faces lie on or above the row (a != b). On such a row
+  // the fill also sets the pixels the outline runs through, which the slices below the row need
+  // not hold (SilhouetteOfSlices checks them in each view).
+  std::vector<Bottom> BottomsOnRows() const {
+    const std::size_t n = mesh_.vertices.size();
+    std::vector<std::uint8_t> down(n, 0);
+    // Per face: whether its third corner lies below each of its edges that is on a row.
+    ParallelChunks(0, mesh_.faces.size(), 16384, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        const Eigen::Vector3i& f = mesh_.faces[i];
+        for (int c = 0; c < 3; ++c) {
+          const VertexRow& r = row_[static_cast<std::size_t>(f[c])];
+          if (r.at != r.floor || !OnImageRow(r.at)) continue;
+          if (row_[static_cast<std::size_t>(f[(c + 1) % 3])].at > r.at ||
+              row_[static_cast<std::size_t>(f[(c + 2) % 3])].at > r.at) {
+            std::atomic_ref<std::uint8_t>(down[static_cast<std::size_t>(f[c])])
+                .store(1, std::memory_order_relaxed);
+          }
+        }
+      }
+    });
+    std::vector<Bottom> bottoms;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (row_[i].at == row_[i].floor && OnImageRow(row_[i].at) && down[i] == 0) {
+        bottoms.push_back({static_cast<int>(row_[i].at), static_cast<int>(i), static_cast<int>(i)});
+      }
+    }
+    const auto below = [&](std::size_t face, int c, double r) {
+      return row_[static_cast<std::size_t>(mesh_.faces[face][(c + 2) % 3])].at > r;
+    };
+    for (std::size_t i = 0; i < mesh_.faces.size(); ++i) {
+      const Eigen::Vector3i& f = mesh_.faces[i];
+      for (int c = 0; c < 3; ++c) {
+        const int a = f[c];
+        const int b = f[(c + 1) % 3];
+        const VertexRow& ra = row_[static_cast<std::size_t>(a)];
+        if (ra.at != ra.floor || !OnImageRow(ra.at) ||
+            row_[static_cast<std::size_t>(b)].at != ra.at || below(i, c, ra.at)) {
+          continue;
+        }
+        // The face across: which of its edges runs b -> a, and whether it goes below.
+        const auto g = static_cast<std::size_t>(neighbours_[i][c]);
+        if (g < i) continue;  // seen from there (or from here, once)
+        bool g_below = false;
+        for (int e = 0; e < 3; ++e) {
+          if (mesh_.faces[g][e] == b && mesh_.faces[g][(e + 1) % 3] == a)
+            g_below = below(g, e, ra.at);
+        }
+        if (!g_below) bottoms.push_back({static_cast<int>(ra.at), a, b});
+      }
+    }
+    return bottoms;
+  }
+
+  // Each image row's slices; false when a face's loop does not close as a closed, consistently
+  // oriented mesh's must.
+  bool Slice(std::vector<RowSlices>* out) {
+    const std::size_t face_count = mesh_.faces.size();
+    // The rows each face crosses, [first_row, first_row + row_count), numbered face by face.
+    first_row_.resize(face_count);
+    first_pair_.resize(face_count + 1);
+    first_pair_[0] = 0;
+    std::vector<std::uint32_t> row_count(face_count);
+    ParallelChunks(0, face_count, 16384, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        const Eigen::Vector3i& f = mesh_.faces[i];
+        const double a = row_[static_cast<std::size_t>(f[0])].at;
+        const double b = row_[static_cast<std::size_t>(f[1])].at;
+        const double c = row_[static_cast<std::size_t>(f[2])].at;
+        // Rows min <= r < max, within the image.
+        const double first = std::max(std::ceil(std::min({a, b, c})), 0.0);
+        const double last = std::min(std::ceil(std::max({a, b, c})) - 1.0, rows_ - 1.0);
+        first_row_[i] = first <= last ? static_cast<int>(first) : 0;
+        row_count[i] = first <= last ? static_cast<std::uint32_t>(last - first) + 1 : 0;
+      }
+    });
+    for (std::size_t i = 0; i < face_count; ++i) first_pair_[i + 1] = first_pair_[i] + row_count[i];
+    // The faces of each row, in face order.
+    std::vector<std::uint32_t> row_start(static_cast<std::size_t>(rows_) + 1, 0);
+    for (std::size_t i = 0; i < face_count; ++i) {
+      for (std::uint32_t k = 0; k < row_count[i]; ++k) {
+        ++row_start[static_cast<std::size_t>(first_row_[i]) + k + 1];
+      }
+    }
+    for (int r = 0; r < rows_; ++r) row_start[r + 1] += row_start[r];
+    std::vector<std::uint32_t> row_faces(row_start.back());
+    {
+      std::vector<std::uint32_t> next(row_start.begin(), row_start.end() - 1);
+      for (std::size_t i = 0; i < face_count; ++i) {
+        for (std::uint32_t k = 0; k < row_count[i]; ++k) {
+          row_faces[next[static_cast<std::size_t>(first_row_[i]) + k]++] =
+              static_cast<std::uint32_t>(i);
+        }
+      }
+    }
+    visited_.assign(first_pair_.back(), 0);
+    out->assign(static_cast<std::size_t>(rows_), RowSlices());
+    std::atomic<bool> closed = true;
+    ParallelFor(0, static_cast<std::size_t>(rows_), [&](std::size_t r) {
+      RowSlices& slices = (*out)[r];
+      // A point per face crossing the row (each face of a loop leaves it by one edge).
+      const std::uint32_t faces = row_start[r + 1] - row_start[r];
+      for (std::vector<double>* v : {&slices.x, &slices.y, &slices.z}) v->reserve(faces);
+      for (std::uint32_t k = row_start[r]; k < row_start[r + 1] && closed.load(); ++k) {
+        const std::uint32_t face = row_faces[k];
+        if (visited_[Pair(face, static_cast<int>(r))] != 0) continue;
+        if (!Loop(face, static_cast<int>(r), row_start[r + 1] - row_start[r], &slices)) {
+          closed.store(false);
+        }
+      }
+    });
+    return closed.load();
+  }
+
+ private:
+  bool OnImageRow(double v) const { return v >= 0.0 && v <= rows_ - 1.0; }
+
+  std::size_t Pair(std::uint32_t face, int r) const {
+    return first_pair_[face] + static_cast<std::size_t>(r - first_row_[face]);
+  }
+
+  // The corners c of `face` whose edge c -> c + 1 row r crosses, into corner[0] < corner[1];
+  // false unless there are two.
+  bool CrossingEdges(std::uint32_t face, double r, int* corner) const {
+    const Eigen::Vector3i& f = mesh_.faces[face];
+    int found = 0;
+    for (int c = 0; c < 3; ++c) {
+      if (!Crosses(row_[static_cast<std::size_t>(f[c])].at,
+                   row_[static_cast<std::size_t>(f[(c + 1) % 3])].at, r)) {
+        continue;
+      }
+      if (found == 2) return false;
+      corner[found++] = c;
+    }
+    return found == 2;
+  }
+
+  // The loop through `start` of the faces crossing row r, its points appended to *slices as one
+  // cycle (each edge's crossing once, from its lower vertex index so that it is the same point
+  // from either face); false when it does not close within `limit` faces.
+  bool Loop(std::uint32_t start, int r, std::uint32_t limit, RowSlices* slices) {
+    const auto row = static_cast<double>(r);
+    int corner[2];
+    if (!CrossingEdges(start, row, corner)) return false;
+    visited_[Pair(start, r)] = 1;
+    std::uint32_t face = start;
+    const int start_exit = corner[0];
+    int exit = start_exit;
+    for (std::uint32_t steps = 0; steps < limit; ++steps) {
+      const Eigen::Vector3i& f = mesh_.faces[face];
+      const int a = f[exit];
+      const int b = f[(exit + 1) % 3];
+      AddCrossing(std::min(a, b), std::max(a, b), row, slices);
+      const int next = neighbours_[face][exit];
+      if (next < 0) return false;
+      const auto g = static_cast<std::uint32_t>(next);
+      if (!CrossingEdges(g, row, corner)) return false;
+      // g runs the edge b -> a: which of its two crossing edges that is.
+      const Eigen::Vector3i& h = mesh_.faces[g];
+      const auto runs = [&](int c) { return h[c] == b && h[(c + 1) % 3] == a; };
+      int entry = -1;
+      if (runs(corner[0])) {
+        entry = 0;
+      } else if (runs(corner[1])) {
+        entry = 1;
+      } else {
+        return false;
+      }
+      if (g == start) {
+        // Back at the start, through its other crossing edge.
+        if (corner[entry] == start_exit) return false;
+        slices->cycle_end.push_back(static_cast<std::uint32_t>(slices->x.size()));
+        return true;
+      }
+      if (r < first_row_[g]) return false;
+      std::uint8_t& seen = visited_[Pair(g, r)];
+      if (seen != 0) return false;
+      seen = 1;
+      face = g;
+      exit = corner[1 - entry];
+    }
+    return false;
+  }
+
+  // The point where edge a - b (a < b) crosses row coordinate r.
+  void AddCrossing(int a, int b, double r, RowSlices* slices) const {
+    const Eigen::Vector3f& pa = mesh_.vertices[static_cast<std::size_t>(a)];
+    const Eigen::Vector3f& pb = mesh_.vertices[static_cast<std::size_t>(b)];
+    const double va = row_[static_cast<std::size_t>(a)].at;
+    const double vb = row_[static_cast<std::size_t>(b)].at;
+    const double t = (r - va) / (vb - va);
+    const auto along = [t](float p, float q) {
+      return static_cast<double>(p) + t * (static_cast<double>(q) - static_cast<double>(p));
+    };
+    slices->x.push_back(along(pa.x(), pb.x()));
+    slices->y.push_back(along(pa.y(), pb.y()));
+    slices->z.push_back(along(pa.z(), pb.z()));
+  }
+
+  const Mesh& mesh_;
+  const std::vector<Eigen::Vector3i>& neighbours_;
+  int rows_;
+  std::vector<VertexRow> row_;
+  std::vector<int> first_row_;
+  std::vector<std::size_t> first_pair_;
+  std::vector<std::uint8_t> visited_;
+};
+
+// View `view`'s silhouette from the slices: on each row, the pixels between the least and the
+// greatest u of each cycle (ends included). nullopt when a bottom's pixel (a pixel centre within
+// 1e-6 px of where the bottom's vertex or edge projects) is not one of them: the fill may set it.
+std::optional<BoxedSilhouette> SilhouetteOfSlices(const Mesh& mesh,
+                                                  const std::vector<RowSlices>& rows,
+                                                  const std::vector<Bottom>& bottoms,
+                                                  const View& view) {
+  const Matrix34d& p = view.pixel_from_object;
+  const double row0[4] = {p(0, 0), p(0, 1), p(0, 2), p(0, 3)};
+  struct Run {
+    int row, first, last;
+  };
+  std::vector<Run> runs;
+  std::vector<std::uint32_t> row_runs(rows.size() + 1, 0);  // runs of row r: [row_runs[r], [r + 1])
+  const int height = std::min(view.height_px, static_cast<int>(rows.size()));
+  for (int r = 0; r < height; ++r) {
+    const RowSlices& slices = rows[static_cast<std::size_t>(r)];
+    std::uint32_t begin = 0;
+    for (const std::uint32_t end : slices.cycle_end) {
+      double lo = 0.0, hi = 0.0;
+      ExtentOfPoints(row0, slices.x.data() + begin, slices.y.data() + begin,
+                     slices.z.data() + begin, end - begin, &lo, &hi);
+      begin = end;
+      const double first = std::max(std::ceil(lo), 0.0);
+      const double last = std::min(std::floor(hi), view.width_px - 1.0);
+      if (first <= last) runs.push_back({r, static_cast<int>(first), static_cast<int>(last)});
+    }
+    row_runs[static_cast<std::size_t>(r) + 1] = static_cast<std::uint32_t>(runs.size());
+  }
+  for (int r = height; r < static_cast<int>(rows.size()); ++r) {
+    row_runs[static_cast<std::size_t>(r) + 1] = static_cast<std::uint32_t>(runs.size());
+  }
+  for (const Bottom& bottom : bottoms) {
+    if (bottom.row >= height) continue;
+    const double ua = Homogeneous(view, mesh.vertices[static_cast<std::size_t>(bottom.a)]).x();
+    const double ub = Homogeneous(view, mesh.vertices[static_cast<std::size_t>(bottom.b)]).x();
+    const double first = std::max(std::ceil(std::min(ua, ub) - 1e-6), 0.0);
+    const double last = std::min(std::floor(std::max(ua, ub) + 1e-6), view.width_px - 1.0);
+    for (double u = first; u <= last; ++u) {
+      bool covered = false;
+      for (std::uint32_t k = row_runs[static_cast<std::size_t>(bottom.row)];
+           k < row_runs[static_cast<std::size_t>(bottom.row) + 1] && !covered; ++k) {
+        covered = runs[k].first <= u && u <= runs[k].last;
+      }
+      if (!covered) return std::nullopt;
+    }
+  }
+  BoxedSilhouette result;
+  if (runs.empty()) return result;
+  int left = runs[0].first, right = runs[0].last;
+  for (const Run& run : runs) {
+    left = std::min(left, run.first);
+    right = std::max(right, run.last);
+  }
+  const int top = runs.front().row;
+  const int bottom = runs.back().row;
+  result.box = cv::Rect(left, top, right - left + 1, bottom - top + 1);
+  result.pixels = cv::Mat(result.box.size(), CV_8UC1, cv::Scalar(0));
+  for (const Run& run : runs) {
+    std::uint8_t* row = result.pixels.ptr<std::uint8_t>(run.row - top);
+    std::fill(row + (run.first - left), row + (run.last - left) + 1, std::uint8_t{255});
+  }
+  return result;
+}
+
+}  // namespace
+
+bool ShareTheirRows(const std::vector<View>& views, const std::vector<std::size_t>& which) {
+  if (which.empty()) return false;
+  const Eigen::RowVector4d affine(0.0, 0.0, 0.0, 1.0);
+  const Eigen::RowVector4d row = views[which[0]].pixel_from_object.row(1);
+  return std::all_of(which.begin(), which.end(), [&](std::size_t i) {
+    const Matrix34d& p = views[i].pixel_from_object;
+    return p.row(2) == affine && p.row(1) == row && p.allFinite();
+  });
+}
+
+bool SilhouettesFromSlices(const Mesh& mesh, const OutlineIndex& index,
+                           const std::vector<View>& views, const std::vector<std::size_t>& which,
+                           const SilhouetteSink& use) {
+  if (!ShareTheirRows(views, which) || !index.finite() || !index.closed()) return false;
+  int rows = 0;
+  for (const std::size_t i : which) rows = std::max(rows, views[i].height_px);
+  Slicer slicer(mesh, index.neighbours(), views[which[0]], rows);
+  std::vector<RowSlices> slices;
+  if (!slicer.Slice(&slices)) return false;
+  const std::vector<Bottom> bottoms = slicer.BottomsOnRows();
+  // A view whose bottoms the slices do not cover is searched for its outline instead.
+  tbb::enumerable_thread_specific<OutlineScratch> scratch;
+  ParallelFor(0, which.size(), [&](std::size_t k) {
+    const View& view = views[which[k]];
+    std::optional<BoxedSilhouette> silhouette = SilhouetteOfSlices(mesh, slices, bottoms, view);
+    if (!silhouette) {
+      silhouette = SilhouetteFromOutline(mesh, index, view, nullptr, &scratch.local());
+    }
+    use(which[k], std::move(silhouette));
+  });
+  return true;
+}
+
+}  // namespace revolve::reconstruct::outline_internal
