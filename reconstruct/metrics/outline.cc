@@ -382,21 +382,30 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   const std::size_t face_count = mesh.faces.size();
   const std::size_t n = mesh.vertices.size();
   // Each vertex's outgoing edges, grouped by vertex: their ends, and their faces with the corner
-  // they start from (face * 4 + corner).
+  // they start from (face * 4 + corner). In each vertex's group the edges to higher vertices come
+  // first (`higher` of them), in face order, then those to lower ones (and to itself).
   std::vector<std::uint32_t> first(n + 1, 0);
+  std::vector<std::uint32_t> higher(n, 0);
   for (const Eigen::Vector3i& f : mesh.faces) {
-    for (int e = 0; e < 3; ++e) ++first[static_cast<std::size_t>(f[e]) + 1];
+    for (int e = 0; e < 3; ++e) {
+      ++first[static_cast<std::size_t>(f[e]) + 1];
+      higher[static_cast<std::size_t>(f[e])] += static_cast<std::uint32_t>(f[(e + 1) % 3] > f[e]);
+    }
   }
   for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
   std::vector<int> to(first[n]);
   std::vector<std::uint32_t> run_by(first[n]);
   {
-    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
+    std::vector<std::uint32_t> next_higher(first.begin(), first.end() - 1);
+    std::vector<std::uint32_t> next_lower(n);
+    for (std::size_t v = 0; v < n; ++v) next_lower[v] = first[v] + higher[v];
     for (std::size_t face = 0; face < face_count; ++face) {
       const Eigen::Vector3i& f = mesh.faces[face];
       for (int e = 0; e < 3; ++e) {
-        const std::uint32_t k = next[static_cast<std::size_t>(f[e])]++;
-        to[k] = f[(e + 1) % 3];
+        const int b = f[(e + 1) % 3];
+        const auto a = static_cast<std::size_t>(f[e]);
+        const std::uint32_t k = b > f[e] ? next_higher[a]++ : next_lower[a]++;
+        to[k] = b;
         run_by[k] = static_cast<std::uint32_t>(face * 4 + static_cast<std::size_t>(e));
       }
     }
@@ -404,28 +413,27 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   std::vector<Eigen::Vector3i> neighbours(face_count);
   std::atomic<bool> closed = true;
   std::atomic<std::int64_t> pairs = 0;
-  // Each edge once, from its lower vertex a to b: a -> b run once (no other a -> b in a's list)
-  // and b -> a once (in b's), the two faces each other's neighbours. A directed edge matched so
-  // is not matched again (its pair is its edge's), so the mesh is closed and consistently
-  // oriented iff no edge is run twice and the pairs found are half the directed edges (a
-  // degenerate edge a -> a, or one with no reverse, is never matched). Each (face, corner) is
-  // written by its pair alone.
+  // Each edge once, from its lower vertex a to b: a -> b run once (no other a -> b among a's edges
+  // to higher vertices) and b -> a once (among b's to lower ones), the two faces each other's
+  // neighbours. A directed edge matched so is not matched again (its pair is its edge's), so the
+  // mesh is closed and consistently oriented iff no edge is run twice and the pairs found are
+  // half the directed edges (a degenerate edge a -> a, or one with no reverse, is never
+  // matched). Each (face, corner) is written by its pair alone.
   ParallelChunks(0, n, 4096, [&](std::size_t lo, std::size_t hi) {
     std::int64_t found = 0;
     for (std::size_t a = lo; a < hi; ++a) {
-      const std::uint32_t end = first[a + 1];
+      const std::uint32_t end = first[a] + higher[a];
       for (std::uint32_t k = first[a]; k < end; ++k) {
         const int b = to[k];
-        if (b <= static_cast<int>(a)) continue;
         bool once = true;
         for (std::uint32_t other = k + 1; other < end; ++other) once = once && to[other] != b;
         std::uint32_t reverse = 0;
         int reverses = 0;
-        for (std::uint32_t m = first[static_cast<std::size_t>(b)];
-             m < first[static_cast<std::size_t>(b) + 1]; ++m) {
-          if (to[m] != static_cast<int>(a)) continue;
-          reverse = m;
-          ++reverses;
+        const auto bv = static_cast<std::size_t>(b);
+        for (std::uint32_t m = first[bv] + higher[bv]; m < first[bv + 1]; ++m) {
+          const bool hit = to[m] == static_cast<int>(a);
+          reverse = hit ? m : reverse;
+          reverses += static_cast<int>(hit);
         }
         if (!once || reverses != 1) {
           closed.store(false, std::memory_order_relaxed);
