@@ -1,6 +1,7 @@
 // SilhouettesFromSlices: the silhouettes of views that share their rows (the thesis's) from the
 // mesh's slices along those rows.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -306,15 +307,45 @@ class Slicer {
   std::vector<std::uint8_t> visited_;
 };
 
-// View `view`'s silhouette from the slices: on each row, the pixels between the least and the
-// greatest u of each cycle (ends included). nullopt when a bottom's pixel (a pixel centre within
-// 1e-6 px of where the bottom's vertex or edge projects) is not one of them: the fill may set it.
+// View `view`'s silhouette from the slices (its extents at `slot` of `view_count`): on each row,
+// the pixels between the least and the greatest u of each cycle (ends included). nullopt when a
+// bottom's pixel (a pixel centre within 1e-6 px of where the bottom's vertex or edge projects) is
+// not one of them: the fill may set it. Each row's loops' least and greatest u in each view:
+// [r][(loop * views + k) * 2] and [.. + 1] for views[which[k]]. Row by row on all cores, each
+// loop's points read once for all the views (they stay in the core's cache; the views' passes over
+// all the points would each read them from memory).
+std::vector<std::vector<double>> Extents(const std::vector<RowSlices>& rows,
+                                         const std::vector<View>& views,
+                                         const std::vector<std::size_t>& which) {
+  std::vector<std::array<double, 4>> row0(which.size());
+  for (std::size_t k = 0; k < which.size(); ++k) {
+    const Matrix34d& p = views[which[k]].pixel_from_object;
+    row0[k] = {p(0, 0), p(0, 1), p(0, 2), p(0, 3)};
+  }
+  std::vector<std::vector<double>> extents(rows.size());
+  ParallelFor(0, rows.size(), [&](std::size_t r) {
+    const RowSlices& slices = rows[r];
+    std::vector<double>& out = extents[r];
+    out.resize(slices.cycle_end.size() * which.size() * 2);
+    std::uint32_t begin = 0;
+    std::size_t at = 0;
+    for (const std::uint32_t end : slices.cycle_end) {
+      for (std::size_t k = 0; k < which.size(); ++k, at += 2) {
+        ExtentOfPoints(row0[k].data(), slices.x.data() + begin, slices.y.data() + begin,
+                       slices.z.data() + begin, end - begin, &out[at], &out[at + 1]);
+      }
+      begin = end;
+    }
+  });
+  return extents;
+}
+
 std::optional<BoxedSilhouette> SilhouetteOfSlices(const Mesh& mesh,
                                                   const std::vector<RowSlices>& rows,
+                                                  const std::vector<std::vector<double>>& extents,
+                                                  std::size_t slot, std::size_t view_count,
                                                   const std::vector<Bottom>& bottoms,
                                                   const View& view) {
-  const Matrix34d& p = view.pixel_from_object;
-  const double row0[4] = {p(0, 0), p(0, 1), p(0, 2), p(0, 3)};
   struct Run {
     int row, first, last;
   };
@@ -322,13 +353,11 @@ std::optional<BoxedSilhouette> SilhouetteOfSlices(const Mesh& mesh,
   std::vector<std::uint32_t> row_runs(rows.size() + 1, 0);  // runs of row r: [row_runs[r], [r + 1])
   const int height = std::min(view.height_px, static_cast<int>(rows.size()));
   for (int r = 0; r < height; ++r) {
-    const RowSlices& slices = rows[static_cast<std::size_t>(r)];
-    std::uint32_t begin = 0;
-    for (const std::uint32_t end : slices.cycle_end) {
-      double lo = 0.0, hi = 0.0;
-      ExtentOfPoints(row0, slices.x.data() + begin, slices.y.data() + begin,
-                     slices.z.data() + begin, end - begin, &lo, &hi);
-      begin = end;
+    const std::size_t loops = rows[static_cast<std::size_t>(r)].cycle_end.size();
+    const std::vector<double>& extent = extents[static_cast<std::size_t>(r)];
+    for (std::size_t loop = 0; loop < loops; ++loop) {
+      const double lo = extent[(loop * view_count + slot) * 2];
+      const double hi = extent[(loop * view_count + slot) * 2 + 1];
       const double first = std::max(std::ceil(lo), 0.0);
       const double last = std::min(std::floor(hi), view.width_px - 1.0);
       if (first <= last) runs.push_back({r, static_cast<int>(first), static_cast<int>(last)});
@@ -393,11 +422,13 @@ bool SilhouettesFromSlices(const Mesh& mesh, const OutlineIndex& index,
   std::vector<RowSlices> slices;
   if (!slicer.Slice(&slices)) return false;
   const std::vector<Bottom> bottoms = slicer.BottomsOnRows();
+  const std::vector<std::vector<double>> extents = Extents(slices, views, which);
   // A view whose bottoms the slices do not cover is searched for its outline instead.
   tbb::enumerable_thread_specific<OutlineScratch> scratch;
   ParallelFor(0, which.size(), [&](std::size_t k) {
     const View& view = views[which[k]];
-    std::optional<BoxedSilhouette> silhouette = SilhouetteOfSlices(mesh, slices, bottoms, view);
+    std::optional<BoxedSilhouette> silhouette =
+        SilhouetteOfSlices(mesh, slices, extents, k, which.size(), bottoms, view);
     if (!silhouette) {
       silhouette = SilhouetteFromOutline(mesh, index, view, nullptr, &scratch.local());
     }
