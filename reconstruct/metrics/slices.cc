@@ -104,19 +104,41 @@ class Slicer {
   // not hold (SilhouetteOfSlices checks them in each view).
   std::vector<Bottom> BottomsOnRows() const {
     const std::size_t n = mesh_.vertices.size();
+    const std::size_t face_count = mesh_.faces.size();
     std::vector<std::uint8_t> down(n, 0);
-    // Per face: whether its third corner lies below each of its edges that is on a row.
-    ParallelChunks(0, mesh_.faces.size(), 16384, [&](std::size_t lo, std::size_t hi) {
-      for (std::size_t i = lo; i < hi; ++i) {
+    const auto below = [&](std::size_t face, int c, double r) {
+      return row_[static_cast<std::size_t>(mesh_.faces[face][(c + 2) % 3])].at > r;
+    };
+    // In chunks of faces on all cores: the corners on a row with a corner of the face below them
+    // marked, and the edges on a row neither of whose faces goes below it (found from the face
+    // of the lower index), each chunk's in face order.
+    constexpr std::size_t kChunk = 16384;
+    std::vector<std::vector<Bottom>> edges((face_count + kChunk - 1) / kChunk);
+    ParallelFor(0, edges.size(), [&](std::size_t chunk) {
+      const std::size_t end = std::min(face_count, (chunk + 1) * kChunk);
+      for (std::size_t i = chunk * kChunk; i < end; ++i) {
         const Eigen::Vector3i& f = mesh_.faces[i];
         for (int c = 0; c < 3; ++c) {
           const VertexRow& r = row_[static_cast<std::size_t>(f[c])];
           if (r.at != r.floor || !OnImageRow(r.at)) continue;
-          if (row_[static_cast<std::size_t>(f[(c + 1) % 3])].at > r.at ||
-              row_[static_cast<std::size_t>(f[(c + 2) % 3])].at > r.at) {
+          const double next = row_[static_cast<std::size_t>(f[(c + 1) % 3])].at;
+          if (next > r.at || below(i, c, r.at)) {
             std::atomic_ref<std::uint8_t>(down[static_cast<std::size_t>(f[c])])
                 .store(1, std::memory_order_relaxed);
           }
+          if (next != r.at || below(i, c, r.at)) continue;
+          // The face across runs b -> a: whether it goes below.
+          const int a = f[c];
+          const int b = f[(c + 1) % 3];
+          const auto g = static_cast<std::size_t>(neighbours_[i][c]);
+          if (g < i) continue;  // seen from there (or from here, once)
+          bool g_below = false;
+          for (int e = 0; e < 3; ++e) {
+            if (mesh_.faces[g][e] == b && mesh_.faces[g][(e + 1) % 3] == a) {
+              g_below = below(g, e, r.at);
+            }
+          }
+          if (!g_below) edges[chunk].push_back({static_cast<int>(r.at), a, b});
         }
       }
     });
@@ -126,29 +148,8 @@ class Slicer {
         bottoms.push_back({static_cast<int>(row_[i].at), static_cast<int>(i), static_cast<int>(i)});
       }
     }
-    const auto below = [&](std::size_t face, int c, double r) {
-      return row_[static_cast<std::size_t>(mesh_.faces[face][(c + 2) % 3])].at > r;
-    };
-    for (std::size_t i = 0; i < mesh_.faces.size(); ++i) {
-      const Eigen::Vector3i& f = mesh_.faces[i];
-      for (int c = 0; c < 3; ++c) {
-        const int a = f[c];
-        const int b = f[(c + 1) % 3];
-        const VertexRow& ra = row_[static_cast<std::size_t>(a)];
-        if (ra.at != ra.floor || !OnImageRow(ra.at) ||
-            row_[static_cast<std::size_t>(b)].at != ra.at || below(i, c, ra.at)) {
-          continue;
-        }
-        // The face across: which of its edges runs b -> a, and whether it goes below.
-        const auto g = static_cast<std::size_t>(neighbours_[i][c]);
-        if (g < i) continue;  // seen from there (or from here, once)
-        bool g_below = false;
-        for (int e = 0; e < 3; ++e) {
-          if (mesh_.faces[g][e] == b && mesh_.faces[g][(e + 1) % 3] == a)
-            g_below = below(g, e, ra.at);
-        }
-        if (!g_below) bottoms.push_back({static_cast<int>(ra.at), a, b});
-      }
+    for (const std::vector<Bottom>& chunk : edges) {
+      bottoms.insert(bottoms.end(), chunk.begin(), chunk.end());
     }
     return bottoms;
   }
@@ -238,7 +239,9 @@ class Slicer {
 
   // The loop through `start` of the faces crossing row r, its points appended to *slices as one
   // cycle (each edge's crossing once, from its lower vertex index so that it is the same point
-  // from either face); false when it does not close within `limit` faces.
+  // from either face); false when it does not close within `limit` faces. A face entered across
+  // edge b -> a (as it runs it) with third corner t leaves across a -> t or t -> b, whichever
+  // row r crosses: the fill's rule makes exactly one of them cross it when b -> a does.
   bool Loop(std::uint32_t start, int r, std::uint32_t limit, RowSlices* slices) {
     const auto row = static_cast<double>(r);
     int corner[2];
@@ -255,30 +258,27 @@ class Slicer {
       const int next = neighbours_[face][exit];
       if (next < 0) return false;
       const auto g = static_cast<std::uint32_t>(next);
-      if (!CrossingEdges(g, row, corner)) return false;
-      // g runs the edge b -> a: which of its two crossing edges that is.
+      // g runs the edge b -> a from its corner c.
       const Eigen::Vector3i& h = mesh_.faces[g];
-      const auto runs = [&](int c) { return h[c] == b && h[(c + 1) % 3] == a; };
-      int entry = -1;
-      if (runs(corner[0])) {
-        entry = 0;
-      } else if (runs(corner[1])) {
-        entry = 1;
-      } else {
-        return false;
-      }
+      int c = 0;
+      while (c < 3 && !(h[c] == b && h[(c + 1) % 3] == a)) ++c;
+      if (c == 3) return false;
       if (g == start) {
         // Back at the start, through its other crossing edge.
-        if (corner[entry] == start_exit) return false;
+        if (c != corner[1]) return false;
         slices->cycle_end.push_back(static_cast<std::uint32_t>(slices->x.size()));
         return true;
       }
-      if (r < first_row_[g]) return false;
+      const double va = row_[static_cast<std::size_t>(a)].at;
+      const double vb = row_[static_cast<std::size_t>(b)].at;
+      const double vt = row_[static_cast<std::size_t>(h[(c + 2) % 3])].at;
+      const bool to_t = Crosses(va, vt, row);
+      if (to_t == Crosses(vt, vb, row)) return false;
       std::uint8_t& seen = visited_[Pair(g, r)];
       if (seen != 0) return false;
       seen = 1;
       face = g;
-      exit = corner[1 - entry];
+      exit = (c + (to_t ? 1 : 2)) % 3;
     }
     return false;
   }
