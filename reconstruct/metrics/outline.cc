@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <utility>
 
 #include <tbb/enumerable_thread_specific.h>
 
@@ -381,66 +382,78 @@ std::optional<BoxedSilhouette> SilhouetteFromEveryEdge(const Mesh& mesh,
 std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   const std::size_t face_count = mesh.faces.size();
   const std::size_t n = mesh.vertices.size();
-  // Each vertex's outgoing edges, grouped by vertex: their ends, and their faces with the corner
-  // they start from (face * 4 + corner). In each vertex's group the edges to higher vertices come
-  // first (`higher` of them), in face order, then those to lower ones (and to itself).
-  std::vector<std::uint32_t> first(n + 1, 0);
-  std::vector<std::uint32_t> higher(n, 0);
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    for (int e = 0; e < 3; ++e) {
-      ++first[static_cast<std::size_t>(f[e]) + 1];
-      higher[static_cast<std::size_t>(f[e])] += static_cast<std::uint32_t>(f[(e + 1) % 3] > f[e]);
+  // Both runs of each edge a - b (a < b) in the bucket of a, in face order: the higher end and
+  // whether the run goes down from it (b -> a), as key = b * 2 + down; the face and the corner it
+  // starts from, as by = face * 4 + corner (corner 3: a down run already paired).
+  struct Run {
+    std::uint32_t key, by;
+  };
+  // The faces in `parts` ranges, one task each: each range's runs counted per bucket, then
+  // placed after those of the ranges before it.
+  const std::size_t parts = std::clamp<std::size_t>(static_cast<std::size_t>(ThreadCount()), 1,
+                                                    std::max<std::size_t>(face_count / 65536, 1));
+  const auto range_of = [&](std::size_t part) {
+    return std::pair(part * face_count / parts, (part + 1) * face_count / parts);
+  };
+  // next[part][v]: where the part's next run in bucket v goes (at first, how many it has there).
+  std::vector<std::vector<std::uint32_t>> next(parts);
+  ParallelFor(0, parts, [&](std::size_t part) {
+    std::vector<std::uint32_t>& count = next[part];
+    count.assign(n, 0);
+    const auto [begin, end] = range_of(part);
+    for (std::size_t face = begin; face < end; ++face) {
+      const Eigen::Vector3i& f = mesh.faces[face];
+      for (int e = 0; e < 3; ++e) ++count[static_cast<std::size_t>(std::min(f[e], f[(e + 1) % 3]))];
     }
+  });
+  std::vector<std::uint32_t> first(n + 1, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    std::uint32_t at = first[v];
+    for (std::vector<std::uint32_t>& part : next) at += std::exchange(part[v], at);
+    first[v + 1] = at;
   }
-  for (std::size_t v = 0; v < n; ++v) first[v + 1] += first[v];
-  std::vector<int> to(first[n]);
-  std::vector<std::uint32_t> run_by(first[n]);
-  {
-    std::vector<std::uint32_t> next_higher(first.begin(), first.end() - 1);
-    std::vector<std::uint32_t> next_lower(n);
-    for (std::size_t v = 0; v < n; ++v) next_lower[v] = first[v] + higher[v];
-    for (std::size_t face = 0; face < face_count; ++face) {
+  const std::uint32_t total = first[n];
+  const std::unique_ptr<Run[]> runs(new Run[total]);  // every slot written below: no zeros first
+  ParallelFor(0, parts, [&](std::size_t part) {
+    std::uint32_t* at = next[part].data();
+    const auto [begin, end] = range_of(part);
+    for (std::size_t face = begin; face < end; ++face) {
       const Eigen::Vector3i& f = mesh.faces[face];
       for (int e = 0; e < 3; ++e) {
+        const int a = f[e];
         const int b = f[(e + 1) % 3];
-        const auto a = static_cast<std::size_t>(f[e]);
-        const std::uint32_t k = b > f[e] ? next_higher[a]++ : next_lower[a]++;
-        to[k] = b;
-        run_by[k] = static_cast<std::uint32_t>(face * 4 + static_cast<std::size_t>(e));
+        runs[at[std::min(a, b)]++] = {
+            static_cast<std::uint32_t>(std::max(a, b)) * 2 + static_cast<std::uint32_t>(a > b),
+            static_cast<std::uint32_t>(face * 4 + static_cast<std::size_t>(e))};
       }
     }
-  }
+  });
+  next = {};
   std::vector<Eigen::Vector3i> neighbours(face_count);
   std::atomic<bool> closed = true;
   std::atomic<std::int64_t> pairs = 0;
-  // Each edge once, from its lower vertex a to b: a -> b run once (no other a -> b among a's edges
-  // to higher vertices) and b -> a once (among b's to lower ones), the two faces each other's
-  // neighbours. A directed edge matched so is not matched again (its pair is its edge's), so the
-  // mesh is closed and consistently oriented iff no edge is run twice and the pairs found are
-  // half the directed edges (a degenerate edge a -> a, or one with no reverse, is never
-  // matched). Each (face, corner) is written by its pair alone.
+  // In each bucket, each up run a -> b is paired with the first down run b -> a there, which is
+  // then marked paired. So the mesh is closed and consistently oriented iff every up run finds
+  // one not paired yet (a second a -> b finds the same one, paired), none runs from a vertex to
+  // itself, and the pairs are half the runs (no down run is left over, as a second b -> a would
+  // be). Each bucket is one thread's; each (face, corner) is written by its pair alone.
   ParallelChunks(0, n, 4096, [&](std::size_t lo, std::size_t hi) {
     std::int64_t found = 0;
     for (std::size_t a = lo; a < hi; ++a) {
-      const std::uint32_t end = first[a] + higher[a];
-      for (std::uint32_t k = first[a]; k < end; ++k) {
-        const int b = to[k];
-        bool once = true;
-        for (std::uint32_t other = k + 1; other < end; ++other) once = once && to[other] != b;
-        std::uint32_t reverse = 0;
-        int reverses = 0;
-        const auto bv = static_cast<std::size_t>(b);
-        for (std::uint32_t m = first[bv] + higher[bv]; m < first[bv + 1]; ++m) {
-          const bool hit = to[m] == static_cast<int>(a);
-          reverse = hit ? m : reverse;
-          reverses += static_cast<int>(hit);
-        }
-        if (!once || reverses != 1) {
+      const std::uint32_t begin = first[a];
+      const std::uint32_t end = first[a + 1];
+      for (std::uint32_t k = begin; k < end; ++k) {
+        const std::uint32_t key = runs[k].key;
+        if ((key & 1u) != 0) continue;  // a down run: paired from its up run
+        std::uint32_t m = begin;
+        while (m < end && runs[m].key != (key | 1u)) ++m;
+        if (m == end || key / 2 == a || runs[m].by % 4 == 3) {
           closed.store(false, std::memory_order_relaxed);
           return;
         }
-        const std::uint32_t left = run_by[k];
-        const std::uint32_t right = run_by[reverse];
+        const std::uint32_t left = runs[k].by;
+        const std::uint32_t right = runs[m].by;
+        runs[m].by = right | 3u;
         neighbours[left / 4][static_cast<int>(left % 4)] = static_cast<int>(right / 4);
         neighbours[right / 4][static_cast<int>(right % 4)] = static_cast<int>(left / 4);
         ++found;
@@ -448,7 +461,7 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
     }
     pairs.fetch_add(found, std::memory_order_relaxed);
   });
-  if (!closed.load() || 2 * pairs.load() != static_cast<std::int64_t>(first[n])) return {};
+  if (!closed.load() || 2 * pairs.load() != static_cast<std::int64_t>(total)) return {};
   return neighbours;
 }
 
