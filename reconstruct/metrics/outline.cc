@@ -434,9 +434,9 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
   std::atomic<std::int64_t> pairs = 0;
   // In each bucket, each up run a -> b is paired with the first down run b -> a there, which is
   // then marked paired. So the mesh is closed and consistently oriented iff every up run finds
-  // one not paired yet (a second a -> b finds the same one, paired), none runs from a vertex to
-  // itself, and the pairs are half the runs (no down run is left over, as a second b -> a would
-  // be). Each bucket is one thread's; each (face, corner) is written by its pair alone.
+  // one not paired yet (a second a -> b finds the same one, paired; a run from a vertex to itself
+  // finds none) and the pairs are half the runs (no down run is left over, as a second b -> a
+  // would be). Each bucket is one thread's; each (face, corner) is written by its pair alone.
   ParallelChunks(0, n, 4096, [&](std::size_t lo, std::size_t hi) {
     std::int64_t found = 0;
     for (std::size_t a = lo; a < hi; ++a) {
@@ -447,7 +447,7 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
         if ((key & 1u) != 0) continue;  // a down run: paired from its up run
         std::uint32_t m = begin;
         while (m < end && runs[m].key != (key | 1u)) ++m;
-        if (m == end || key / 2 == a || runs[m].by % 4 == 3) {
+        if (m == end || runs[m].by % 4 == 3) {
           closed.store(false, std::memory_order_relaxed);
           return;
         }
@@ -466,7 +466,7 @@ std::vector<Eigen::Vector3i> FaceNeighbours(const Mesh& mesh) {
 }
 
 OutlineIndex::OutlineIndex(const Mesh& mesh) : mesh_(&mesh) {
-  // The neighbours (mostly one thread's work) beside the sphere (on the cores left).
+  // The neighbours (on all cores) beside the sphere.
   ParallelInvoke([&] { neighbours_ = FaceNeighbours(mesh); }, [&] { MeasureSphere(mesh); });
 }
 
