@@ -15,13 +15,13 @@
 namespace revolve::reconstruct::outline_internal {
 namespace {
 
-// A vertex's row coordinate (as Projected computes it) and its floor.
+// A vertex's row coordinate (as Projected computes it) and its ceiling (at == ceil: on a row).
 struct VertexRow {
-  double at, floor;
+  double at, ceil;
 };
 
 // rows[i] for the vertices [begin, end) in `view` (Homogeneous's second row, written out); built
-// for AVX2 too where the processor has it (floor is an instruction there, a call without it).
+// for AVX2 too where the processor has it (ceil is an instruction there, a call without it).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 [[gnu::target_clones("avx2", "default")]]
 #endif
@@ -34,14 +34,15 @@ void VertexRows(const View& view, const std::vector<Eigen::Vector3f>& vertices, 
     const double v = ((p0 * static_cast<double>(x.x()) + p1 * static_cast<double>(x.y())) +
                       p2 * static_cast<double>(x.z())) +
                      p3;
-    rows[i] = {v, std::floor(v)};
+    rows[i] = {v, std::ceil(v)};
   }
 }
 
 // The least and greatest u = ((p0 x + p1 y) + p2 z) + p3 (Homogeneous's first row) of the
-// points [0, count) (count > 0), into *lo and *hi: four running extremes, so that the loop runs
-// on vectors (built for AVX2 too where the processor has it). The points are finite, and which
-// of two equal values (or zeros) is kept does not matter.
+// points [0, count) (count > 0), into *lo and *hi: four running extremes of the sum before p3,
+// so that the loop runs on vectors (built for AVX2 too where the processor has it), and p3 added
+// to the two extremes (the same values: adding p3 and rounding never reverses an order). The
+// points are finite, and which of two equal values (or zeros) is kept does not matter.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(REVOLVE_PORTABLE)
 [[gnu::target_clones("avx2", "default")]]
 #endif
@@ -57,18 +58,18 @@ void ExtentOfPoints(const double* row0, const double* __restrict x, const double
   std::size_t i = 0;
   for (; i + kLanes <= count; i += kLanes) {
     for (int k = 0; k < kLanes; ++k) {
-      const double u = ((p0 * x[i + k] + p1 * y[i + k]) + p2 * z[i + k]) + p3;
+      const double u = (p0 * x[i + k] + p1 * y[i + k]) + p2 * z[i + k];
       least[k] = u < least[k] ? u : least[k];
       most[k] = u > most[k] ? u : most[k];
     }
   }
   for (; i < count; ++i) {
-    const double u = ((p0 * x[i] + p1 * y[i]) + p2 * z[i]) + p3;
+    const double u = (p0 * x[i] + p1 * y[i]) + p2 * z[i];
     least[0] = u < least[0] ? u : least[0];
     most[0] = u > most[0] ? u : most[0];
   }
-  *lo = std::min({least[0], least[1], least[2], least[3]});
-  *hi = std::max({most[0], most[1], most[2], most[3]});
+  *lo = std::min({least[0], least[1], least[2], least[3]}) + p3;
+  *hi = std::max({most[0], most[1], most[2], most[3]}) + p3;
 }
 
 // Whether a row coordinate p..q edge (either order) is crossed by row r: the fill's rule, rows
@@ -120,7 +121,7 @@ class Slicer {
         const Eigen::Vector3i& f = mesh_.faces[i];
         for (int c = 0; c < 3; ++c) {
           const VertexRow& r = row_[static_cast<std::size_t>(f[c])];
-          if (r.at != r.floor || !OnImageRow(r.at)) continue;
+          if (r.at != r.ceil || !OnImageRow(r.at)) continue;
           const double next = row_[static_cast<std::size_t>(f[(c + 1) % 3])].at;
           if (next > r.at || below(i, c, r.at)) {
             std::atomic_ref<std::uint8_t>(down[static_cast<std::size_t>(f[c])])
@@ -144,7 +145,7 @@ class Slicer {
     });
     std::vector<Bottom> bottoms;
     for (std::size_t i = 0; i < n; ++i) {
-      if (row_[i].at == row_[i].floor && OnImageRow(row_[i].at) && down[i] == 0) {
+      if (row_[i].at == row_[i].ceil && OnImageRow(row_[i].at) && down[i] == 0) {
         bottoms.push_back({static_cast<int>(row_[i].at), static_cast<int>(i), static_cast<int>(i)});
       }
     }
@@ -159,29 +160,34 @@ class Slicer {
   bool Slice(std::vector<RowSlices>* out) {
     const std::size_t face_count = mesh_.faces.size();
     // The rows each face crosses, [first_row, first_row + row_count), numbered face by face.
-    first_row_.resize(face_count);
-    first_pair_.resize(face_count + 1);
-    first_pair_[0] = 0;
+    std::vector<int> first_row(face_count);
     std::vector<std::uint32_t> row_count(face_count);
     ParallelChunks(0, face_count, 16384, [&](std::size_t lo, std::size_t hi) {
       for (std::size_t i = lo; i < hi; ++i) {
         const Eigen::Vector3i& f = mesh_.faces[i];
-        const double a = row_[static_cast<std::size_t>(f[0])].at;
-        const double b = row_[static_cast<std::size_t>(f[1])].at;
-        const double c = row_[static_cast<std::size_t>(f[2])].at;
-        // Rows min <= r < max, within the image.
-        const double first = std::max(std::ceil(std::min({a, b, c})), 0.0);
-        const double last = std::min(std::ceil(std::max({a, b, c})) - 1.0, rows_ - 1.0);
-        first_row_[i] = first <= last ? static_cast<int>(first) : 0;
+        const double a = row_[static_cast<std::size_t>(f[0])].ceil;
+        const double b = row_[static_cast<std::size_t>(f[1])].ceil;
+        const double c = row_[static_cast<std::size_t>(f[2])].ceil;
+        // Rows min <= r < max, within the image: from ceil(min) = min(ceil), the corners' (the
+        // ceiling never decreases), and the same for max.
+        const double first = std::max(std::min({a, b, c}), 0.0);
+        const double last = std::min(std::max({a, b, c}) - 1.0, rows_ - 1.0);
+        first_row[i] = first <= last ? static_cast<int>(first) : 0;
         row_count[i] = first <= last ? static_cast<std::uint32_t>(last - first) + 1 : 0;
       }
     });
-    for (std::size_t i = 0; i < face_count; ++i) first_pair_[i + 1] = first_pair_[i] + row_count[i];
+    // Face i's pairs are numbered from `pairs` on, row first_row[i] first.
+    pair_base_.resize(face_count);
+    std::int64_t pairs = 0;
+    for (std::size_t i = 0; i < face_count; ++i) {
+      pair_base_[i] = pairs - first_row[i];
+      pairs += row_count[i];
+    }
     // The faces of each row, in face order.
     std::vector<std::uint32_t> row_start(static_cast<std::size_t>(rows_) + 1, 0);
     for (std::size_t i = 0; i < face_count; ++i) {
       for (std::uint32_t k = 0; k < row_count[i]; ++k) {
-        ++row_start[static_cast<std::size_t>(first_row_[i]) + k + 1];
+        ++row_start[static_cast<std::size_t>(first_row[i]) + k + 1];
       }
     }
     for (int r = 0; r < rows_; ++r) row_start[r + 1] += row_start[r];
@@ -190,12 +196,12 @@ class Slicer {
       std::vector<std::uint32_t> next(row_start.begin(), row_start.end() - 1);
       for (std::size_t i = 0; i < face_count; ++i) {
         for (std::uint32_t k = 0; k < row_count[i]; ++k) {
-          row_faces[next[static_cast<std::size_t>(first_row_[i]) + k]++] =
+          row_faces[next[static_cast<std::size_t>(first_row[i]) + k]++] =
               static_cast<std::uint32_t>(i);
         }
       }
     }
-    visited_.assign(first_pair_.back(), 0);
+    visited_.assign(static_cast<std::size_t>(pairs), 0);
     out->assign(static_cast<std::size_t>(rows_), RowSlices());
     std::atomic<bool> closed = true;
     ParallelFor(0, static_cast<std::size_t>(rows_), [&](std::size_t r) {
@@ -218,7 +224,7 @@ class Slicer {
   bool OnImageRow(double v) const { return v >= 0.0 && v <= rows_ - 1.0; }
 
   std::size_t Pair(std::uint32_t face, int r) const {
-    return first_pair_[face] + static_cast<std::size_t>(r - first_row_[face]);
+    return static_cast<std::size_t>(pair_base_[face] + r);
   }
 
   // The corners c of `face` whose edge c -> c + 1 row r crosses, into corner[0] < corner[1];
@@ -258,11 +264,11 @@ class Slicer {
       const int next = neighbours_[face][exit];
       if (next < 0) return false;
       const auto g = static_cast<std::uint32_t>(next);
-      // g runs the edge b -> a from its corner c.
+      // g runs the edge b -> a from its corner c: where b is (once: a face of a closed mesh
+      // repeats no vertex).
       const Eigen::Vector3i& h = mesh_.faces[g];
-      int c = 0;
-      while (c < 3 && !(h[c] == b && h[(c + 1) % 3] == a)) ++c;
-      if (c == 3) return false;
+      const int c = h[0] == b ? 0 : (h[1] == b ? 1 : 2);
+      if (h[c] != b || h[(c + 1) % 3] != a) return false;
       if (g == start) {
         // Back at the start, through its other crossing edge.
         if (c != corner[1]) return false;
@@ -302,8 +308,8 @@ class Slicer {
   const std::vector<Eigen::Vector3i>& neighbours_;
   int rows_;
   std::vector<VertexRow> row_;
-  std::vector<int> first_row_;
-  std::vector<std::size_t> first_pair_;
+  // Face f's (face, row) pair for row r, an index of visited_: pair_base_[f] + r.
+  std::vector<std::int64_t> pair_base_;
   std::vector<std::uint8_t> visited_;
 };
 

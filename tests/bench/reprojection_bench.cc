@@ -7,7 +7,8 @@
 // station's pinhole ring (768 x 576, 20 degrees above) or the thesis's orthographic views
 // (1280 x 960, the hull scaled to pixels, as `reconstruct --images` without calibration).
 // REVOLVE_BENCH_MESH=model.ply takes that mesh instead (e.g. `reconstruct --images`'s own model:
-// it is in the thesis's pixels already).
+// it is in the thesis's pixels already), and REVOLVE_BENCH_SIZE=WxH the thesis views' size (its
+// photos', e.g. 720x576 for silhouettes of that size; 1280x960 unless said).
 #include <cstdio>
 #include <cstdlib>
 
@@ -72,8 +73,16 @@ const Scene& GetScene(bool thesis) {
     for (Eigen::Vector3f& v : s.mesh.vertices) v = 3.5f * v + Eigen::Vector3f(0.0f, 0.0f, 60.0f);
   }
   const Rig rig = testing::StationRig(450.0, 20.0, 60.0);
+  int width = 1280;
+  int height = 960;
+  if (const char* size = std::getenv("REVOLVE_BENCH_SIZE");
+      size != nullptr && std::sscanf(size, "%dx%d", &width, &height) != 2) {
+    std::fprintf(stderr, "REVOLVE_BENCH_SIZE=%s: not WxH (e.g. 720x576)\n", size);
+    std::exit(2);
+  }
   for (int k = 0; k < kViews; ++k) {
-    s.views.push_back(thesis ? ThesisView(1280, 960, 10.0 * k) : testing::ViewOf(rig, 10.0 * k));
+    s.views.push_back(thesis ? ThesisView(width, height, 10.0 * k)
+                             : testing::ViewOf(rig, 10.0 * k));
     s.masks.push_back(thesis ? RenderSilhouette(s.mesh, s.views.back())
                              : testing::SphereMask(rig, 10.0 * k, Spheres()));
   }
@@ -151,6 +160,25 @@ void BM_OutlineIndex(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OutlineIndex)->Name("OutlineIndex")->Unit(benchmark::kMillisecond);
+
+// The thesis's views' silhouettes from the mesh's slices alone (the index made once, outside the
+// loop): what SilhouetteReprojection does after the index for views that share their rows.
+void BM_Slices(benchmark::State& state) {
+  const Scene& s = GetScene(true);
+  const outline_internal::OutlineIndex index(s.mesh);
+  std::vector<std::size_t> which(s.views.size());
+  for (std::size_t i = 0; i < which.size(); ++i) which[i] = i;
+  int not_sliced = 0;
+  for (auto _ : state) {
+    const bool sliced = outline_internal::SilhouettesFromSlices(
+        s.mesh, index, s.views, which, [&](std::size_t, std::optional<BoxedSilhouette> silhouette) {
+          benchmark::DoNotOptimize(silhouette);
+        });
+    if (!sliced) ++not_sliced;
+  }
+  state.counters["not_sliced"] = not_sliced;
+}
+BENCHMARK(BM_Slices)->Name("Slices36Views")->Unit(benchmark::kMillisecond);
 
 // ComputeStats, which `reconstruct --images` runs beside SilhouetteReprojection (its
 // metrics_ms is both).
