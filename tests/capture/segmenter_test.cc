@@ -1,6 +1,7 @@
 // Silhouette segmentation on rendered frames and on masks with known defects.
 #include "capture/segmenter.h"
 
+#include <cmath>
 #include <cstdio>
 #include <optional>
 #include <random>
@@ -295,7 +296,8 @@ TEST(GraphCut, NoiseScoreIsOpenCvsBlurToTheBit) {
   }
   // Every box sum 0..6375 at the middle of a 5 x 5 frame: a window of 25 levels adding up to it.
   for (int sum = 0; sum <= 25 * 255; ++sum) {
-    cv::Mat image(5, 5, CV_8UC1, cv::Scalar(sum / 25));
+    const int each = sum / 25;  // every pixel's level; the remainder added below
+    cv::Mat image(5, 5, CV_8UC1, cv::Scalar(each));
     for (int i = 0; i < sum % 25; ++i) ++image.at<std::uint8_t>(i / 5, i % 5);
     cv::Mat expected;
     cv::blur(image, expected, cv::Size(5, 5), cv::Point(-1, -1), cv::BORDER_REPLICATE);
@@ -440,6 +442,74 @@ TEST(BackdropSurface, AnEvenBackdropDoesNotRise) {
   ASSERT_TRUE(surface.has_value());
   EXPECT_LT(surface->Rise(), 2.0);
   EXPECT_FALSE(BackdropSurface::FitToOutline(frame, cv::Rect(10, 10, 3, 3)).has_value());
+}
+
+// The distance is the rounded Euclidean one, saturated at 255, for every squared distance a pixel
+// can be from its backdrop (each as the sum of three squares of channel differences), against one
+// colour, per pixel, and with the shadow model where it does not apply (a black backdrop); and
+// against a coloured backdrop, both ways of differing.
+TEST(BackdropDistance, IsTheRoundedEuclideanDistanceForEverySquare) {
+  constexpr int kMaxSquare = 255 * 255;
+  std::vector<cv::Vec3b> pixels(kMaxSquare + 1, cv::Vec3b(255, 255, 255));
+  std::vector<bool> reached(kMaxSquare + 1, false);
+  for (int a = 0; a < 256; ++a) {
+    for (int b = a; b < 256; ++b) {
+      for (int c = b; c < 256 && a * a + b * b + c * c <= kMaxSquare; ++c) {
+        const int square = a * a + b * b + c * c;
+        if (reached[square]) continue;
+        reached[square] = true;
+        pixels[square] = cv::Vec3b(static_cast<std::uint8_t>(a), static_cast<std::uint8_t>(b),
+                                   static_cast<std::uint8_t>(c));
+      }
+    }
+  }
+  std::vector<cv::Vec3b> row;
+  std::vector<std::uint8_t> expected;
+  const auto add = [&](const cv::Vec3b& pixel, int square) {
+    row.push_back(pixel);
+    expected.push_back(static_cast<std::uint8_t>(
+        std::lround(std::sqrt(static_cast<double>(std::min(square, kMaxSquare))))));
+  };
+  for (int square = 0; square <= kMaxSquare; ++square) {
+    if (reached[square]) add(pixels[square], square);
+  }
+  add(cv::Vec3b(255, 255, 255), 3 * kMaxSquare);  // saturated
+  const cv::Mat image(1, static_cast<int>(row.size()), CV_8UC3, row.data());
+  ASSERT_GT(image.cols, 50000);
+  const cv::Mat black(1, 1, CV_8UC3, cv::Scalar(0, 0, 0));
+  const cv::Mat expected_row(1, image.cols, CV_8UC1, expected.data());
+  for (const bool shadows : {false, true}) {
+    EXPECT_EQ(cv::norm(BackdropDistance(image, black, shadows), expected_row, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(BackdropDistance(image, cv::Mat::zeros(image.size(), CV_8UC3), shadows),
+                       expected_row, cv::NORM_INF),
+              0.0);
+  }
+  // A coloured backdrop: pixels on either side of it.
+  std::mt19937 random(7);
+  std::uniform_int_distribution<int> level(0, 255);
+  cv::Mat photo(37, 101, CV_8UC3);
+  for (int y = 0; y < photo.rows; ++y) {
+    for (int x = 0; x < photo.cols; ++x) {
+      photo.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(level(random)),
+                                            static_cast<std::uint8_t>(level(random)),
+                                            static_cast<std::uint8_t>(level(random)));
+    }
+  }
+  const cv::Vec3b key(10, 200, 37);
+  const cv::Mat distance =
+      BackdropDistance(photo, cv::Mat(1, 1, CV_8UC3, cv::Scalar(key[0], key[1], key[2])), false);
+  for (int y = 0; y < photo.rows; ++y) {
+    for (int x = 0; x < photo.cols; ++x) {
+      int square = 0;
+      for (int c = 0; c < 3; ++c) {
+        const int d = photo.at<cv::Vec3b>(y, x)[c] - key[c];
+        square += d * d;
+      }
+      ASSERT_EQ(distance.at<std::uint8_t>(y, x),
+                std::lround(std::sqrt(static_cast<double>(std::min(square, kMaxSquare)))))
+          << x << ", " << y;
+    }
+  }
 }
 
 }  // namespace
