@@ -101,7 +101,8 @@ std::optional<BackdropSurface> BackdropSurface::FitToOutline(const cv::Mat& bgr,
     const std::vector<double>& value_of = values[static_cast<std::size_t>(c)];
     Terms fit = Terms::Zero();
     double limit = std::numeric_limits<double>::infinity();
-    for (int round = 0; round < 3; ++round) {
+    constexpr int kRounds = 3;
+    for (int round = 0; round < kRounds; ++round) {
       Terms rhs = Terms::Zero();
       for (std::size_t i = 0; i < points.size(); ++i) {
         const double value = value_of[i];
@@ -114,6 +115,7 @@ std::optional<BackdropSurface> BackdropSurface::FitToOutline(const cv::Mat& bgr,
       const Terms next = normal.ldlt().solve(rhs);
       if (!next.allFinite()) return std::nullopt;
       fit = next;
+      if (round + 1 == kRounds) break;  // no round after it to keep points by its residuals
       for (std::size_t i = 0; i < points.size(); ++i) {
         residuals[i] = std::abs(value_of[i] - fit.dot(terms[i]));
       }
