@@ -580,7 +580,9 @@ constexpr int kClippedSlackLevels = 12;
 
 namespace {
 
-// sqrt(i) rounded and saturated, for the squared distances that stay below 255^2.
+// sqrt(i) rounded and saturated, for the squared distances that stay below 255^2: for the shadow
+// model's pixels, one at a time, where a look-up is faster than RoundedRoot (below), which the
+// common case computes on vectors instead (the same values).
 const std::vector<std::uint8_t>& RootTable() {
   static const std::vector<std::uint8_t> root = [] {
     std::vector<std::uint8_t> table(255 * 255 + 1);
