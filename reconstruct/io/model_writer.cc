@@ -135,20 +135,23 @@ Expected<ModelWriter::Output> ModelWriter::WriteFormat(const std::string& format
   }
   Expected<std::unique_ptr<AtomicFile>> file = OpenFile(path);
   if (!file) return std::unexpected(file.error());
+  // The vertices' texts made once when both the VRML and the OBJ write them; one of them alone
+  // writes its numbers straight into its file (no 32 bytes a vertex of text held besides).
+  internal::VertexTexts* const texts = Wants("wrl") && Wants("obj") ? &vertex_texts_ : nullptr;
   Expected<void> put;
   if (format == "ply") {
     put = internal::PutPly(mesh_, gate_, file->get());
   } else if (format == "stl") {
     put = internal::PutStl(mesh_, gate_, file->get());
   } else if (format == "wrl") {
-    put = internal::PutVrml(mesh_, gate_, file->get(), &vertex_texts_);
+    put = internal::PutVrml(mesh_, gate_, file->get(), texts);
   } else if (format == "glb") {
     put = internal::PutGlb(
         mesh_, gate_, [this] { return WaitForPng(); }, file->get());
   } else {
     Expected<std::unique_ptr<AtomicFile>> mtl = OpenFile(PathOf("mtl"));
     if (!mtl) return std::unexpected(mtl.error());
-    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get(), &vertex_texts_);
+    put = internal::PutObj(mesh_, gate_, file->get(), mtl->get(), texts);
     output.files.push_back(std::move(*file));
     file = std::move(*mtl);
   }
