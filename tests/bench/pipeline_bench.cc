@@ -10,6 +10,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include <benchmark/benchmark.h>
 
@@ -60,7 +62,8 @@ const Frames& GetFrames() {
 }
 
 // kStaged: the files written as the mesh is made (the station's way); else once it is done.
-template <bool kNaive, bool kStaged = true>
+// kGlbOnly: the glTF alone rather than every format ([reconstruct] formats = ["glb"]).
+template <bool kNaive, bool kStaged = true, bool kGlbOnly = false>
 void BM_LastViewToFiles(benchmark::State& state) {
   const bool texture = state.range(0) != 0;
   const Frames& f = GetFrames();
@@ -103,7 +106,10 @@ void BM_LastViewToFiles(benchmark::State& state) {
     // what it holds is final. files_ms is what is left of the files once the mesh is done.
     // Without kStaged the writer is told nothing before Finish: WriteModel after the mesh.
     Mesh mesh;
-    auto writer = ModelWriter::Start(mesh, out, "model", {"ply", "obj", "stl", "glb", "wrl"});
+    auto writer =
+        ModelWriter::Start(mesh, out, "model",
+                           kGlbOnly ? std::vector<std::string>{"glb"}
+                                    : std::vector<std::string>{"ply", "obj", "stl", "glb", "wrl"});
     if (!writer) {
       state.SkipWithError("write failed");
       break;
@@ -132,6 +138,13 @@ void BM_LastViewToFiles(benchmark::State& state) {
   };
   state.counters["process_cpu_ms"] =
       (cpu_ms(after_run) - cpu_ms(before_run)) / static_cast<double>(state.iterations());
+  // The bytes of the last run's files (MB): what the disk takes at the end of a scan.
+  std::uintmax_t bytes = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& file : fs::directory_iterator(out, ec)) {
+    bytes += file.is_regular_file(ec) ? file.file_size(ec) : 0;
+  }
+  state.counters["file_mb"] = static_cast<double>(bytes) / 1e6;
   fs::remove_all(dir);
   state.counters["triangles"] = static_cast<double>(triangles);
   const char* parts[4] = {"view_ms", "surface_ms", "colour_ms", "files_ms"};
@@ -149,6 +162,12 @@ BENCHMARK(BM_LastViewToFiles<false>)
 // comparison.
 BENCHMARK(BM_LastViewToFiles<false, false>)
     ->Name("LastViewToFiles/sequential")
+    ->ArgName("texture")
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond);
+// The same finish writing the glTF alone (the web console's model): fewer bytes and no text.
+BENCHMARK(BM_LastViewToFiles<false, true, true>)
+    ->Name("LastViewToFiles/glb_only")
     ->ArgName("texture")
     ->Arg(1)
     ->Unit(benchmark::kMillisecond);
